@@ -1,0 +1,112 @@
+#include "core/camera.h"
+
+#include <cmath>
+
+#include "core/capacity.h"
+
+namespace st {
+
+double Pinhole::hfov_deg() const {
+  return (std::atan((cx + 0.5) / fx) + std::atan((width - 0.5 - cx) / fx)) * 180.0 / M_PI;
+}
+double Pinhole::vfov_deg() const {
+  return (std::atan((cy + 0.5) / fy) + std::atan((height - 0.5 - cy) / fy)) * 180.0 / M_PI;
+}
+
+bool Distortion::is_zero() const {
+  for (int i = 0; i < count; ++i)
+    if (k[i] != 0.0) return false;
+  return true;
+}
+
+Vec2 Distortion::distort(const Vec2& xn) const { return distort(xn, nullptr); }
+
+Vec2 Distortion::distort(const Vec2& xn, Eigen::Matrix2d* J) const {
+  const double k1 = k[0], k2 = k[1], p1 = k[2], p2 = k[3];
+  const double k3 = count >= 5 ? k[4] : 0.0;
+  const double k4 = count == 8 ? k[5] : 0.0, k5 = count == 8 ? k[6] : 0.0,
+               k6 = count == 8 ? k[7] : 0.0;
+  const double x = xn.x(), y = xn.y();
+  const double r2 = x * x + y * y, r4 = r2 * r2, r6 = r4 * r2;
+  const double num = 1.0 + k1 * r2 + k2 * r4 + k3 * r6;
+  const double den = 1.0 + k4 * r2 + k5 * r4 + k6 * r6;
+  const double radial = num / den;
+  const Vec2 out(x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+                 y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y);
+  if (J) {
+    const double dnum_dr2 = k1 + 2.0 * k2 * r2 + 3.0 * k3 * r4;
+    const double dden_dr2 = k4 + 2.0 * k5 * r2 + 3.0 * k6 * r4;
+    const double dradial_dr2 = (dnum_dr2 * den - num * dden_dr2) / (den * den);
+    const double drx = dradial_dr2 * 2.0 * x, dry = dradial_dr2 * 2.0 * y;
+    (*J)(0, 0) = radial + x * drx + 2.0 * p1 * y + p2 * 6.0 * x;
+    (*J)(0, 1) = x * dry + 2.0 * p1 * x + p2 * 2.0 * y;
+    (*J)(1, 0) = y * drx + p1 * 2.0 * x + 2.0 * p2 * y;
+    (*J)(1, 1) = radial + y * dry + p1 * 6.0 * y + 2.0 * p2 * x;
+  }
+  return out;
+}
+
+Status CameraModel::validate(const Pinhole& K, const Distortion& d) {
+  if (K.width <= 0 || K.height <= 0 || K.width > kMaxImageWidth || K.height > kMaxImageHeight)
+    return make_error("image size " + std::to_string(K.width) + "x" + std::to_string(K.height) +
+                      " is outside 1x1.." + std::to_string(kMaxImageWidth) + "x" +
+                      std::to_string(kMaxImageHeight));
+  if (!std::isfinite(K.fx) || !std::isfinite(K.fy) || K.fx <= 0 || K.fy <= 0)
+    return make_error("focal lengths must be finite and positive (fx=" + std::to_string(K.fx) +
+                      ", fy=" + std::to_string(K.fy) + ")");
+  if (!std::isfinite(K.cx) || !std::isfinite(K.cy) || K.cx < 0 || K.cy < 0 ||
+      K.cx > K.width - 1 || K.cy > K.height - 1)
+    return make_error("principal point (" + std::to_string(K.cx) + ", " + std::to_string(K.cy) +
+                      ") is not inside the " + std::to_string(K.width) + "x" +
+                      std::to_string(K.height) + " image");
+  if (d.count != 0 && d.count != 4 && d.count != 5 && d.count != 8)
+    return make_error("distortion must have 4, 5 or 8 coefficients, got " +
+                      std::to_string(d.count));
+  for (int i = 0; i < d.count; ++i)
+    if (!std::isfinite(d.k[i])) return make_error("distortion coefficient " + std::to_string(i) +
+                                                  " is not finite");
+  return Status::Ok();
+}
+
+Vec2 CameraModel::project(const Vec3& p_camera) const {
+  const Vec2 xn(p_camera.x() / p_camera.z(), p_camera.y() / p_camera.z());
+  const Vec2 xd = d_.count ? d_.distort(xn) : xn;
+  return {K_.fx * xd.x() + K_.cx, K_.fy * xd.y() + K_.cy};
+}
+
+Vec2 CameraModel::distort_pixel(const Vec2& ideal_px) const {
+  if (d_.count == 0) return ideal_px;
+  const Vec2 xn((ideal_px.x() - K_.cx) / K_.fx, (ideal_px.y() - K_.cy) / K_.fy);
+  const Vec2 xd = d_.distort(xn);
+  return {K_.fx * xd.x() + K_.cx, K_.fy * xd.y() + K_.cy};
+}
+
+bool CameraModel::undistort_pixel(const Vec2& distorted_px, Vec2* ideal_px,
+                                  const UndistortOptions& opt) const {
+  const Vec2 target((distorted_px.x() - K_.cx) / K_.fx, (distorted_px.y() - K_.cy) / K_.fy);
+  if (d_.count == 0 || d_.is_zero()) {
+    *ideal_px = distorted_px;
+    return true;
+  }
+  // Newton on f(x) = distort(x) - target, started at the target.
+  Vec2 x = target;
+  const double tol_n = opt.tolerance_px / std::max(K_.fx, K_.fy);
+  for (int it = 0; it < opt.max_iterations; ++it) {
+    Eigen::Matrix2d J;
+    const Vec2 r = d_.distort(x, &J) - target;
+    if (!r.allFinite()) break;
+    if (r.norm() < tol_n) {
+      *ideal_px = Vec2(K_.fx * x.x() + K_.cx, K_.fy * x.y() + K_.cy);
+      return true;
+    }
+    const double det = J.determinant();
+    if (!(std::abs(det) > 1e-12)) break;  // fold of the distortion map
+    x -= J.inverse() * r;
+  }
+  *ideal_px = Vec2(K_.fx * x.x() + K_.cx, K_.fy * x.y() + K_.cy);
+  Eigen::Matrix2d J;
+  const Vec2 r = d_.distort(x, &J) - target;
+  return r.allFinite() && r.norm() < tol_n && J.determinant() > 0;
+}
+
+}  // namespace st

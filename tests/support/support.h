@@ -1,0 +1,33 @@
+// Shared test helpers: paths to real data, scratch folders, timing budgets.
+#pragma once
+
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+namespace st::test {
+
+// ../shared beside the checkout (real data made by others).
+inline std::filesystem::path shared_dir() { return SCOPETRACK_SHARED_DIR; }
+inline std::filesystem::path shared_data(const std::string& rel) {
+  return shared_dir() / "data" / rel;
+}
+// build/bin, where the executables land (end-to-end tests run them).
+inline std::filesystem::path bin_dir() { return SCOPETRACK_BIN_DIR; }
+
+// A fresh, empty scratch folder for one test.
+std::filesystem::path scratch_dir(const std::string& name);
+
+// Timing budget in seconds for doctest::timeout(): generous ceilings that
+// catch gross regressions only. SCOPETRACK_TIME_SCALE multiplies them for
+// slow, sanitized or emulated machines (e.g. 10 under ASan or qemu).
+inline double budget_s(double seconds) {
+  const char* s = std::getenv("SCOPETRACK_TIME_SCALE");
+  const double scale = s ? std::atof(s) : 1.0;
+  return seconds * (scale > 0 ? scale : 1.0);
+}
+
+// Reads a whole file into bytes (test fixtures).
+std::string read_file_bytes(const std::filesystem::path& p);
+
+}  // namespace st::test
