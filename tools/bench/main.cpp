@@ -1,0 +1,114 @@
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include "bench.h"
+#include "platform/clock.h"
+
+namespace st::bench {
+namespace {
+struct Stage {
+  const char* name;
+  const char* help;
+  StageFn fn;
+};
+std::vector<Stage>& stages() {
+  static std::vector<Stage> s;
+  return s;
+}
+}  // namespace
+
+StageRegistration::StageRegistration(const char* name, const char* help, StageFn fn) {
+  stages().push_back({name, help, fn});
+}
+
+double now_ms() { return static_cast<double>(platform::monotonic_ns()) * 1e-6; }
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const double pos = std::clamp(p, 0.0, 100.0) / 100.0 * static_cast<double>(v.size() - 1);
+  const std::size_t lo = static_cast<std::size_t>(std::floor(pos));
+  const std::size_t hi = std::min(lo + 1, v.size() - 1);
+  return v[lo] + (v[hi] - v[lo]) * (pos - static_cast<double>(lo));
+}
+double median(std::vector<double> v) { return percentile(std::move(v), 50.0); }
+
+static std::string json_escape(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (c == '"' || c == '\\') o += '\\';
+    if (static_cast<unsigned char>(c) < 0x20) continue;
+    o += c;
+  }
+  return o;
+}
+
+void report(const Options& opt, const Row& row) {
+  const double med = median(row.samples_ms), p99 = percentile(row.samples_ms, 99.0);
+  const bool has_base = !row.baseline.empty() && !row.baseline_ms.empty();
+  const double base_med = has_base ? median(row.baseline_ms) : NAN;
+  if (opt.json) {
+    std::printf("{\"bench\": \"%s\", \"median_ms\": %.4f, \"p99_ms\": %.4f, \"samples\": %zu",
+                json_escape(row.name).c_str(), med, p99, row.samples_ms.size());
+    if (has_base)
+      std::printf(", \"baseline\": \"%s\", \"baseline_median_ms\": %.4f, \"speedup\": %.3f",
+                  json_escape(row.baseline).c_str(), base_med, base_med / med);
+    if (!row.note.empty()) std::printf(", \"note\": \"%s\"", json_escape(row.note).c_str());
+    std::printf("}\n");
+  } else {
+    std::printf("%-34s median %9.3f ms   p99 %9.3f ms   (n=%zu)\n", row.name.c_str(), med, p99,
+                row.samples_ms.size());
+    if (has_base)
+      std::printf("  %-32s median %9.3f ms   -> speedup %.2fx\n", row.baseline.c_str(), base_med,
+                  base_med / med);
+    if (!row.note.empty()) std::printf("  %s\n", row.note.c_str());
+  }
+  std::fflush(stdout);
+}
+
+void info(const Options& opt, const std::string& line) {
+  (void)opt;
+  std::fprintf(stderr, "%s\n", line.c_str());
+}
+
+}  // namespace st::bench
+
+static void usage() {
+  std::printf("usage: scopetrack-bench [--json] [--iterations N] [--shared DIR] STAGE [ARGS...]\n"
+              "stages:\n");
+  for (const auto& s : st::bench::stages()) std::printf("  %-10s %s\n", s.name, s.help);
+}
+
+int main(int argc, char** argv) {
+  st::bench::Options opt;
+  opt.shared_dir = SCOPETRACK_SHARED_DIR;
+  const char* stage = nullptr;
+  for (int i = 1; i < argc; ++i) {
+    if (stage) {
+      opt.args.emplace_back(argv[i]);
+    } else if (!std::strcmp(argv[i], "--json")) {
+      opt.json = true;
+    } else if (!std::strcmp(argv[i], "--iterations") && i + 1 < argc) {
+      opt.iterations = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--shared") && i + 1 < argc) {
+      opt.shared_dir = argv[++i];
+    } else if (!std::strcmp(argv[i], "--help") || !std::strcmp(argv[i], "-h")) {
+      usage();
+      return 0;
+    } else {
+      stage = argv[i];
+    }
+  }
+  if (!stage) {
+    usage();
+    return 2;
+  }
+  for (const auto& s : st::bench::stages())
+    if (!std::strcmp(s.name, stage)) return s.fn(opt);
+  std::fprintf(stderr, "scopetrack-bench: unknown stage '%s'\n", stage);
+  usage();
+  return 2;
+}
