@@ -27,7 +27,7 @@ StageRegistration::StageRegistration(const char* name, const char* help, StageFn
 double now_ms() { return static_cast<double>(platform::monotonic_ns()) * 1e-6; }
 
 double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return NAN;
+  if (v.empty()) return std::nan("");
   std::sort(v.begin(), v.end());
   const double pos = std::clamp(p, 0.0, 100.0) / 100.0 * static_cast<double>(v.size() - 1);
   const std::size_t lo = static_cast<std::size_t>(std::floor(pos));
@@ -49,7 +49,7 @@ static std::string json_escape(const std::string& s) {
 void report(const Options& opt, const Row& row) {
   const double med = median(row.samples_ms), p99 = percentile(row.samples_ms, 99.0);
   const bool has_base = !row.baseline.empty() && !row.baseline_ms.empty();
-  const double base_med = has_base ? median(row.baseline_ms) : NAN;
+  const double base_med = has_base ? median(row.baseline_ms) : std::nan("");
   if (opt.json) {
     std::printf("{\"bench\": \"%s\", \"median_ms\": %.4f, \"p99_ms\": %.4f, \"samples\": %zu",
                 json_escape(row.name).c_str(), med, p99, row.samples_ms.size());
