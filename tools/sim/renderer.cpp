@@ -139,4 +139,26 @@ void SceneRenderer::render(const Trajectory& trajectory, int frame, cv::Mat& rgb
   finish(frame, rgb, labels);
 }
 
+std::vector<std::pair<Vec2, Vec3>> SceneRenderer::visible_organ_points(const WorldState& state,
+                                                                     const cv::Mat& labels, int margin_px,
+                                                                     int step_px) {
+  const SE3 T_model_camera = state.T_model_camera();
+  organ_raster_.render(T_model_camera.inverse(), K_ideal_);
+  const ImageView<const float> depth = organ_raster_.depth();
+  std::vector<std::pair<Vec2, Vec3>> out;
+  const int W = labels.cols, H = labels.rows, m = margin_px;
+  auto organ = [&](int x, int y) { return labels.at<std::uint8_t>(y, x) == kLabelOrgan; };
+  for (int y = m; y < H - m; y += step_px)
+    for (int x = m; x < W - m; x += step_px) {
+      if (!organ(x, y) || !organ(x - m, y) || !organ(x + m, y) || !organ(x, y - m) || !organ(x, y + m)) continue;
+      const std::int32_t src = nearest_[static_cast<std::size_t>(y) * W + x];
+      if (src < 0) continue;
+      const int ix = src % K_ideal_.width, iy = src / K_ideal_.width;
+      const float d = depth(ix, iy);
+      if (d <= 0.0f) continue;
+      out.emplace_back(Vec2(x, y), T_model_camera * K_ideal_.unproject(Vec2(ix, iy), d));
+    }
+  return out;
+}
+
 }  // namespace st::sim

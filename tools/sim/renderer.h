@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -45,6 +46,11 @@ class SceneRenderer {
   // Averages the trajectory's sub-frames (motion blur); the labels are the
   // centre sub-frame, i.e. exactly the frame's pose.
   void render(const Trajectory& trajectory, int frame, cv::Mat& rgb, cv::Mat& labels);
+  // Organ surface points seen at output pixels of a rendered frame (every
+  // step_px), at least margin_px inside the organ's label region: pairs of
+  // (output pixel, model point). Re-renders the organ at `state`.
+  std::vector<std::pair<Vec2, Vec3>> visible_organ_points(const WorldState& state, const cv::Mat& labels,
+                                                          int margin_px, int step_px);
   // The ideal pinhole the meshes are rasterised with (output K plus a
   // margin that covers the distorted image).
   const Pinhole& ideal_camera() const { return K_ideal_; }
