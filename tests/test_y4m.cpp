@@ -38,3 +38,51 @@ TEST_CASE("y4m: frame writer packs planes and rejects wrong sizes") {
   CHECK_FALSE(append_y4m_frame(h, {y.data(), 5, 3}, {u.data(), 2, 2}, {v.data(), 3, 2}, &bad).ok());
   CHECK(bad.empty());
 }
+
+TEST_CASE("y4m: ffmpeg header with X-tags, C420 variants, no C tag") {
+  auto r = parse_y4m_header(
+      "YUV4MPEG2 W1920 H1080 F25:1 Ip A1:1 C420jpeg XYSCSS=420JPEG XCOLORRANGE=LIMITED\nFRAME\n");
+  REQUIRE(r.ok());
+  CHECK(r->width == 1920);
+  CHECK(r->chroma_tag == "420jpeg");
+  CHECK(r->header_bytes == 80);
+  for (const char* tag : {" C420paldv", " C420mpeg2", " C420", ""}) {
+    auto h = parse_y4m_header(std::string("YUV4MPEG2 W4 H2 F30:1") + tag + "\n");
+    REQUIRE(h.ok());
+    CHECK(h->chroma == Chroma::k420);
+    CHECK(h->frame_bytes() == 8 + 2 * 2);
+  }
+  auto frame = parse_y4m_frame_line("FRAME Ixyz XFOO=1\n\x10\x10");
+  REQUIRE(frame.ok());
+  CHECK(frame.value() == 18);
+}
+
+TEST_CASE("y4m: bad headers and FRAME lines give clear errors") {
+  struct Case { std::string bytes; const char* needle; };
+  const Case cases[] = {
+      {"", "must start with 'YUV4MPEG2'"},
+      {"RIFF\x00\x01", "must start with 'YUV4MPEG2'"},
+      {"YUV4MPEG2 W640 H480 F25:1 C420jpeg", "no end"},                  // truncated header
+      {"YUV4MPEG2 W0 H480\n", "width"},
+      {"YUV4MPEG2 W640 H0\n", "height"},
+      {"YUV4MPEG2 W-5 H480\n", "width"},
+      {"YUV4MPEG2 W100000 H480\n", "width"},                             // absurd, capped
+      {"YUV4MPEG2 W99999999999999999999 H480\n", "width"},               // overflow
+      {"YUV4MPEG2 W640 H480 C444\n", "not supported"},
+      {"YUV4MPEG2 W640 H480 Cmono16\n", "not supported"},
+      {"YUV4MPEG2 W640 H480 F25:0\n", "frame rate"},
+      {"YUV4MPEG2 W640 F25:1\n", "frame size"},
+      {"YUV4MPEG2W640 H480\n", "followed by a space"},
+      {"YUV4MPEG2 W640 H480 " + std::string(5000, 'X') + "\n", "no end"},
+  };
+  for (const Case& c : cases) {
+    auto r = parse_y4m_header(c.bytes);
+    REQUIRE_FALSE(r.ok());
+    INFO(r.message());
+    CHECK(r.message().find(c.needle) != std::string::npos);
+  }
+  CHECK_FALSE(parse_y4m_frame_line("FRAMX\n").ok());
+  CHECK_FALSE(parse_y4m_frame_line("FRAME").ok());
+  CHECK_FALSE(parse_y4m_frame_line("FRAMEX\n").ok());
+  CHECK_FALSE(parse_y4m_frame_line("").ok());
+}
