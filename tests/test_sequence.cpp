@@ -49,3 +49,78 @@ TEST_CASE("sequence: yaml write/parse round trip, and OpenCV reads it") {
   CHECK(K.at<double>(0, 2) == 639.5);
   CHECK(static_cast<int>(fs["image_width"]) == 1280);
 }
+
+namespace {
+// The example config's YAML with one key's text replaced (or removed).
+std::string with_replaced(const std::string& key, const std::string& replacement) {
+  std::string text = format_sequence_yaml(example_config());
+  const std::size_t at = text.find(key + ":");
+  REQUIRE(at != std::string::npos);
+  std::size_t end = text.find('\n', at);
+  // Matrices span several lines until the next top-level key.
+  while (end + 1 < text.size() && (text[end + 1] == ' ')) end = text.find('\n', end + 1);
+  text.replace(at, end - at, replacement);
+  return text;
+}
+std::string matrix(int rows, int cols, const std::string& data) {
+  return "!!opencv-matrix\n   rows: " + std::to_string(rows) + "\n   cols: " + std::to_string(cols) +
+         "\n   dt: d\n   data: [ " + data + " ]";
+}
+}  // namespace
+
+TEST_CASE("sequence: OpenCV calibration output pasted in, 4 and 8 coefficients, tiny rotation error") {
+  for (const char* d : {"0.1, 0.01, 0, 0", "0.1, 0.01, 0, 0, 0.001, 0, 0, 0"}) {
+    auto r = parse_sequence_yaml(with_replaced(
+        "distortion_coefficients",
+        "distortion_coefficients: " + matrix(1, std::string(d).size() > 20 ? 8 : 4, d)));
+    REQUIRE_MESSAGE(r.ok(), (r.ok() ? "" : r.message()));
+    CHECK((r->distortion.count == 4 || r->distortion.count == 8));
+  }
+  // A rotation written with 6 decimals: off by ~1e-6, re-orthonormalised.
+  auto r = parse_sequence_yaml(with_replaced(
+      "T_camera_model_init", "T_camera_model_init: " +
+                                 matrix(4, 4, "0.999999, 0.001, 0, 1, -0.001, 0.999999, 0, 2, 0, 0, 1.000001, 150, 0, 0, 0, 1")));
+  REQUIRE_MESSAGE(r.ok(), (r.ok() ? "" : r.message()));
+  CHECK(r->T_init_reorthonormalised);
+  const Mat3 R = r->T_camera_model_init.rotation();
+  CHECK((R.transpose() * R - Mat3::Identity()).norm() < 1e-12);
+  CHECK(r->T_camera_model_init.translation().z() == 150);
+}
+
+TEST_CASE("sequence: bad sequence.yaml gives clear errors, never throws") {
+  struct Case { std::string text; const char* needle; };
+  const std::string K_ok = "640, 0, 320, 0, 640, 240, 0, 0, 1";
+  const Case cases[] = {
+      {"", "empty"},
+      {"%YAML:1.0\n---\nimage_width: [1, 2\n", "YAML"},                             // broken YAML
+      {"\x01\x02\x03 garbage {{{", "sequence.yaml"},
+      {"<?xml version=\"1.0\"?>\n<opencv_storage><x>1</x>", "sequence.yaml"},
+      {"%YAML:1.0\n---\nfoo: 1\n", "image_width"},
+      {with_replaced("image_width", "image_width: 0"), "image size"},
+      {with_replaced("image_width", "image_width: 100000"), "image size"},
+      {with_replaced("image_width", "image_width: abc"), "integers"},
+      {with_replaced("camera_matrix", "camera_matrix: " + matrix(2, 2, "1, 0, 0, 1")), "3x3"},
+      {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "-640, 0, 320, 0, 640, 240, 0, 0, 1")), "focal"},
+      {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 0, 5000, 0, 640, 240, 0, 0, 1")), "principal point"},
+      {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 0, .nan, 0, 640, 240, 0, 0, 1")), "principal point"},
+      {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 3, 320, 0, 640, 240, 0, 0, 1")), "skew"},
+      {with_replaced("distortion_coefficients", "distortion_coefficients: " + matrix(1, 3, "0, 0, 0")), "4, 5 or 8"},
+      {with_replaced("distortion_coefficients", "x: 1"), "distortion_coefficients missing"},
+      {with_replaced("fps", "fps: -3"), "fps"},
+      {with_replaced("video", "video: \"\""), "required"},
+      {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(3, 3, K_ok)), "4x4"},
+      {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 1")), "not rigid"},
+      {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, 0, 0, 1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1")), "not rigid"},
+      {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0.01, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1")), "not rigid"},
+      {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1")), "last row"},
+      {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, .inf, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1")), "non-finite"},
+  };
+  for (const Case& c : cases) {
+    Result<SequenceConfig> r = make_error("not run");
+    CHECK_NOTHROW(r = parse_sequence_yaml(c.text));
+    REQUIRE_FALSE(r.ok());
+    INFO(c.text);
+    INFO(r.message());
+    CHECK(r.message().find(c.needle) != std::string::npos);
+  }
+}
