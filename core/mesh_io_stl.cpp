@@ -86,7 +86,8 @@ Result<Mesh> parse_stl_binary(std::string_view bytes) {
     for (int k = 0; k < 3; ++k) {
       const float x = read_f32_le(p + 12 * k), y = read_f32_le(p + 12 * k + 4),
                   z = read_f32_le(p + 12 * k + 8);
-      if (!finite_coord(x) || !finite_coord(y) || !finite_coord(z))
+      if (!finite_coord(static_cast<double>(x)) || !finite_coord(static_cast<double>(y)) ||
+          !finite_coord(static_cast<double>(z)))
         return make_error("STL triangle " + std::to_string(f) + " has a non-finite coordinate");
       v[k] = welder.add(x, y, z);
     }

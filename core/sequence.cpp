@@ -9,13 +9,26 @@
 namespace st {
 namespace {
 
-// A numeric matrix node read as doubles; false if absent or not numeric.
+// An opencv-matrix node (rows, cols, data) read as doubles. Parsed here
+// rather than with `node >> cv::Mat`, which allocates rows x cols as written
+// (a corrupt "cols: 4000000000" would ask for gigabytes).
+constexpr int kMaxMatrixEntries = 16;
 bool read_matrix(const cv::FileNode& node, cv::Mat* out) {
   if (node.empty() || !node.isMap()) return false;
-  cv::Mat m;
-  node >> m;
-  if (m.empty() || m.channels() != 1) return false;
-  m.convertTo(*out, CV_64F);
+  const cv::FileNode rows = node["rows"], cols = node["cols"], data = node["data"];
+  if (!rows.isInt() || !cols.isInt() || !data.isSeq()) return false;
+  const int r = static_cast<int>(rows), c = static_cast<int>(cols);
+  if (r <= 0 || c <= 0 || r > kMaxMatrixEntries || c > kMaxMatrixEntries || r * c > kMaxMatrixEntries ||
+      data.size() != static_cast<std::size_t>(r * c))
+    return false;
+  cv::Mat m(r, c, CV_64F);
+  int i = 0;
+  for (cv::FileNodeIterator it = data.begin(); it != data.end(); ++it, ++i) {
+    const cv::FileNode v = *it;
+    if (!v.isInt() && !v.isReal()) return false;
+    m.at<double>(i / c, i % c) = static_cast<double>(v);
+  }
+  *out = m;
   return true;
 }
 
@@ -29,7 +42,7 @@ Status read_camera(const cv::FileStorage& fs, SequenceConfig* c) {
   c->K = Pinhole{K.at<double>(0, 0), K.at<double>(1, 1), K.at<double>(0, 2), K.at<double>(1, 2),
                  c->width, c->height};
   if (!read_matrix(fs["distortion_coefficients"], &d))
-    return make_error("sequence.yaml: distortion_coefficients missing (1x5 opencv-matrix; "
+    return make_error("sequence.yaml: distortion_coefficients missing or malformed (1x5 opencv-matrix; "
                       "all zero for an ideal pinhole)");
   const int n = static_cast<int>(d.total());
   if (n != 4 && n != 5 && n != 8)

@@ -113,6 +113,11 @@ TEST_CASE("sequence: bad sequence.yaml gives clear errors, never throws") {
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, 0, 0, 1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1")), "not rigid"},
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0.01, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1")), "not rigid"},
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1")), "last row"},
+      // Found by fuzz_sequence_yaml: cv::Mat reading allocated rows x cols as written.
+      {with_replaced("camera_matrix", "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: \xbb\n   dt: d\n   data: [ 60., 0., 31.5, 01, 60., 23.5, 0., 0., 1. ]"), "3x3"},
+      {with_replaced("camera_matrix", "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 2000000000\n   dt: d\n   data: [ 1 ]"), "3x3"},
+      {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 0, 320, 0, 640, 240, 0, 0")), "3x3"},
+      {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 0, 320, 0, abc, 240, 0, 0, 1")), "3x3"},
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, .inf, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1")), "non-finite"},
   };
   for (const Case& c : cases) {
