@@ -18,12 +18,27 @@
 
 namespace st {
 
+namespace raster {
+struct Target;
+struct Counters;
+}  // namespace raster
+
 struct RasterConfig {
-  int width = 0;           // full-resolution image size, pixels
+  int width = 0;  // full-resolution image size, pixels
   int height = 0;
-  int downscale = 1;       // 1, 2 or 4: the raster is width/downscale x height/downscale
-  double near_mm = 1.0;    // near clipping plane, mm along the optical axis
+  int downscale = 1;           // 1, 2 or 4: the raster is width/downscale x height/downscale
+  double near_mm = 1.0;        // near clipping plane, mm along the optical axis
   bool cull_backfaces = true;  // closed organ: back faces are never visible
+  bool use_simd = true;        // false forces the portable span kernel (tests, bench)
+};
+
+// What the last render() did (for tests, the bench and diagnostics).
+struct RasterStats {
+  int triangles_outside = 0;   // rejected by the frustum test (all vertices beyond one plane)
+  int triangles_culled = 0;    // back-facing, degenerate, or between pixel centres
+  int triangles_clipped = 0;   // crossed the near plane or the guard band
+  int triangles_drawn = 0;     // reached the scanline stage (clipped ones count once)
+  std::int64_t fragments = 0;  // pixels inside drawn triangles, before the depth test
 };
 
 class MeshRasterizer {
@@ -33,16 +48,20 @@ class MeshRasterizer {
 
   // Renders the mesh seen from T_camera_model through the full-resolution
   // ideal pinhole K_full (scaled internally to the raster size).
+  // Defined degraded state: before configure(), or with a non-finite pose or
+  // a pinhole without positive finite focal lengths, the render is empty.
+  // Only K_full's intrinsics are used; the raster size comes from configure().
   void render(const SE3& T_camera_model, const Pinhole& K_full);
+  const RasterStats& stats() const { return stats_; }
 
   const RasterConfig& config() const { return config_; }
   // The pinhole of the raster (K_full scaled by 1/downscale).
   const Pinhole& camera() const { return camera_; }
   const SE3& T_camera_model() const { return T_camera_model_; }
 
-  ImageView<const float> depth() const;              // mm along z; 0 where no organ
-  ImageView<const std::int32_t> triangle_id() const; // -1 where no organ
-  ImageView<const std::uint8_t> mask() const;        // 255 organ, 0 elsewhere
+  ImageView<const float> depth() const;               // mm along z; 0 where no organ
+  ImageView<const std::int32_t> triangle_id() const;  // -1 where no organ
+  ImageView<const std::uint8_t> mask() const;         // 255 organ, 0 elsewhere
   int covered_pixels() const { return covered_pixels_; }
 
   // Full-resolution pixel -> raster pixel (pixel centres at integers).
@@ -55,17 +74,51 @@ class MeshRasterizer {
   Vec3 model_point(const Vec2& px_raster, double depth_mm) const;
   // Mask eroded (k < 0) or dilated (k > 0) by |k| pixels (square structuring
   // element) into a caller-owned buffer of the raster size.
+  // The image border neither erodes nor dilates (OpenCV's default). An out
+  // of another size is left untouched. Uses internal scratch: not reentrant.
   void morph_mask(int k, ImageView<std::uint8_t> out) const;
   // Ids of the triangles visible in the last render (at least one pixel),
   // written to out (capacity entries), sorted ascending; returns the count.
+  // If the count exceeds capacity, only the first capacity ids are written
+  // (the return value still says how many there are).
   int visible_triangles(std::int32_t* out, int capacity) const;
 
+  // Depth spread (relative) up to which 4 neighbours count as one surface in
+  // depth_at(): a 2% step across one pixel is a fold or an occluding edge.
+  static constexpr double kSameSurfaceRelDepth = 0.02;
+
  private:
-  // (implementation state: transformed vertices, buffers, scratch)
+  void clear_buffers();
+  raster::Target target();
+  void transform_vertices();
+  void draw_triangle(int t, const raster::Target& tgt, raster::Counters* counters);
+  void draw_clipped(int t, const raster::Target& tgt, raster::Counters* counters);
+
   RasterConfig config_;
   Pinhole camera_;
   SE3 T_camera_model_;
   int covered_pixels_ = 0;
+  RasterStats stats_;
+  bool configured_ = false;
+  bool rendered_ = false;
+  int raster_width_ = 0, raster_height_ = 0;
+
+  // The mesh, copied at configure().
+  std::vector<float> model_x_, model_y_, model_z_;
+  std::vector<std::int32_t> tri_;
+  // Per render, per vertex: camera frame (mm), frustum outcode, snapped
+  // pixel position (1/4096 px; valid where the outcode has no clip bit).
+  std::vector<double> cam_x_, cam_y_, cam_z_;
+  std::vector<std::uint16_t> outcode_;
+  std::vector<std::int32_t> snap_x_, snap_y_;
+  // Output buffers, stride = raster width, padded at the end (SIMD groups).
+  std::vector<float> depth_buf_;
+  std::vector<std::int32_t> id_buf_;
+  std::vector<std::uint8_t> mask_buf_;
+  // Scratch for the const helpers (sized at configure; single-threaded use).
+  mutable std::vector<std::uint64_t> visible_bits_;
+  mutable std::vector<std::uint8_t> morph_rows_;
+  mutable std::vector<std::int32_t> morph_counts_, morph_prefix_;
 };
 
 }  // namespace st

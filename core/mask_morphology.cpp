@@ -1,0 +1,56 @@
+#include "core/mask_morphology.h"
+
+#include <algorithm>
+
+namespace st {
+namespace {
+
+// Erosion: set iff every pixel of the window that lies inside the image is
+// set. Dilation: set iff any is. count = set pixels, n = window pixels inside.
+inline std::uint8_t decide(bool erode, int count, int n) {
+  return (erode ? count == n : count > 0) ? 255 : 0;
+}
+
+void horizontal_pass(ImageView<const std::uint8_t> in, int r, bool erode,
+                     ImageView<std::uint8_t> out, std::int32_t* prefix) {
+  const int w = in.width;
+  for (int y = 0; y < in.height; ++y) {
+    const std::uint8_t* src = in.row(y);
+    prefix[0] = 0;
+    for (int x = 0; x < w; ++x) prefix[x + 1] = prefix[x] + (src[x] != 0);
+    std::uint8_t* dst = out.row(y);
+    for (int x = 0; x < w; ++x) {
+      const int lo = std::max(0, x - r), hi = std::min(w - 1, x + r);
+      dst[x] = decide(erode, prefix[hi + 1] - prefix[lo], hi - lo + 1);
+    }
+  }
+}
+
+void vertical_pass(ImageView<const std::uint8_t> in, int r, bool erode, ImageView<std::uint8_t> out,
+                   std::int32_t* counts) {
+  const int w = in.width, h = in.height;
+  std::fill(counts, counts + w, 0);
+  for (int y = 0; y < std::min(r, h); ++y)
+    for (int x = 0; x < w; ++x) counts[x] += in(x, y) != 0;
+  for (int y = 0; y < h; ++y) {
+    if (y + r < h)
+      for (int x = 0; x < w; ++x) counts[x] += in(x, y + r) != 0;
+    if (y - r - 1 >= 0)
+      for (int x = 0; x < w; ++x) counts[x] -= in(x, y - r - 1) != 0;
+    const int n = std::min(h - 1, y + r) - std::max(0, y - r) + 1;
+    std::uint8_t* dst = out.row(y);
+    for (int x = 0; x < w; ++x) dst[x] = decide(erode, counts[x], n);
+  }
+}
+
+}  // namespace
+
+void morph_square(ImageView<const std::uint8_t> in, int k, ImageView<std::uint8_t> out,
+                  const MorphScratch& scratch) {
+  const bool erode = k < 0;
+  const int r = std::min(k < 0 ? -k : k, std::max(in.width, in.height));
+  horizontal_pass(in, r, erode, scratch.rows, scratch.row_prefix);
+  vertical_pass(scratch.rows, r, erode, out, scratch.column_counts);
+}
+
+}  // namespace st

@@ -1,0 +1,204 @@
+#include "core/raster_triangle.h"
+
+#include <algorithm>
+#include <cstring>
+#include <opencv2/core/hal/intrin.hpp>
+
+namespace st::raster {
+namespace {
+
+// floor(n / m) and n - m * floor(n / m) for m > 0.
+inline void floor_divmod(std::int64_t n, std::int64_t m, std::int64_t* q, std::int64_t* r) {
+  std::int64_t qq = n / m, rr = n % m;
+  if (rr < 0) {
+    rr += m;
+    --qq;
+  }
+  *q = qq;
+  *r = rr;
+}
+inline std::int64_t floor_div(std::int64_t n, std::int64_t m) {
+  std::int64_t q, r;
+  floor_divmod(n, m, &q, &r);
+  return q;
+}
+inline std::int64_t ceil_div(std::int64_t n, std::int64_t m) { return -floor_div(-n, m); }
+
+// ceil(N / m) of an edge bound, exactly, as N falls by dN every row:
+// N = q * m - r with 0 <= r < m; per row q drops by qd or qd + 1.
+struct EdgeWalk {
+  std::int64_t q, r, m, qd, rd;
+
+  void init(std::int64_t n0, std::int64_t dn, std::int64_t m_in) {
+    m = m_in;
+    std::int64_t fq, fr;
+    floor_divmod(-n0, m, &fq, &fr);  // -n0 = fq m + fr  ->  n0 = -fq m - fr
+    q = -fq;
+    r = fr;
+    floor_divmod(dn, m, &qd, &rd);
+  }
+  void step() {
+    r += rd;
+    q -= qd;
+    if (r >= m) {
+      r -= m;
+      --q;
+    }
+  }
+};
+
+// Span [x0, x1] of row y: depth test on z = 1/iz, id and mask writes.
+struct Span {
+  int x0, x1;
+  float iz0, gx, iz_min, iz_max;
+  std::int32_t id;
+};
+
+void fill_span_portable(const Span& s, float* depth, std::int32_t* ids, std::uint8_t* mask,
+                        Counters* counters) {
+  int newly = 0;
+  for (int x = s.x0; x <= s.x1; ++x) {
+    float iz = s.iz0 + s.gx * static_cast<float>(x - s.x0);
+    iz = std::min(std::max(iz, s.iz_min), s.iz_max);
+    const float z = 1.0f / iz;
+    const float old = depth[x];
+    if (old == 0.0f) ++newly;
+    if (old == 0.0f || z < old) {
+      depth[x] = z;
+      ids[x] = s.id;
+    }
+    mask[x] = 255;
+  }
+  counters->newly_covered += newly;
+}
+
+#if CV_SIMD128
+// Bytes 0xFF in the lanes whose bit is set: mask writes, 4 pixels at once.
+constexpr std::uint32_t kLaneBytes[16] = {0x00000000u, 0x000000FFu, 0x0000FF00u, 0x0000FFFFu,
+                                          0x00FF0000u, 0x00FF00FFu, 0x00FFFF00u, 0x00FFFFFFu,
+                                          0xFF000000u, 0xFF0000FFu, 0xFF00FF00u, 0xFF00FFFFu,
+                                          0xFFFF0000u, 0xFFFF00FFu, 0xFFFFFF00u, 0xFFFFFFFFu};
+
+// Same arithmetic as the portable kernel, 4 pixels per step. The last group
+// may reach 3 pixels past x1: those lanes are read and written back unchanged
+// (the buffers are padded, see Target).
+void fill_span_simd(const Span& s, float* depth, std::int32_t* ids, std::uint8_t* mask,
+                    Counters* counters) {
+  const cv::v_float32x4 lane(0.f, 1.f, 2.f, 3.f), zero = cv::v_setzero_f32();
+  const cv::v_float32x4 iz0 = cv::v_setall_f32(s.iz0), gx = cv::v_setall_f32(s.gx);
+  const cv::v_float32x4 iz_min = cv::v_setall_f32(s.iz_min), iz_max = cv::v_setall_f32(s.iz_max);
+  const cv::v_float32x4 one = cv::v_setall_f32(1.0f);
+  const cv::v_int32x4 id = cv::v_setall_s32(s.id), lane_i(0, 1, 2, 3);
+  int newly = 0;
+  for (int x = s.x0; x <= s.x1; x += 4) {
+    const cv::v_float32x4 k = cv::v_setall_f32(static_cast<float>(x - s.x0)) + lane;
+    const cv::v_float32x4 iz = cv::v_min(cv::v_max(iz0 + gx * k, iz_min), iz_max);
+    const cv::v_float32x4 z = one / iz;
+    const cv::v_float32x4 old = cv::v_load(depth + x);
+    cv::v_float32x4 empty = old == zero;
+    cv::v_float32x4 pass = empty | (z < old);
+    int lanes = 15;
+    if (x + 3 > s.x1) {
+      const cv::v_int32x4 inside = (cv::v_setall_s32(x) + lane_i) <= cv::v_setall_s32(s.x1);
+      const cv::v_float32x4 inside_f = cv::v_reinterpret_as_f32(inside);
+      pass = pass & inside_f;
+      empty = empty & inside_f;
+      lanes = cv::v_signmask(inside);
+    }
+    cv::v_store(depth + x, cv::v_select(pass, z, old));
+    const cv::v_int32x4 old_id = cv::v_load(ids + x);
+    cv::v_store(ids + x, cv::v_select(cv::v_reinterpret_as_s32(pass), id, old_id));
+    newly += __builtin_popcount(static_cast<unsigned>(cv::v_signmask(empty)));
+    std::uint32_t m;
+    std::memcpy(&m, mask + x, 4);
+    m |= kLaneBytes[lanes];
+    std::memcpy(mask + x, &m, 4);
+  }
+  counters->newly_covered += newly;
+}
+#endif
+
+inline void fill_span(const Span& s, bool use_simd, float* depth, std::int32_t* ids,
+                      std::uint8_t* mask, Counters* counters) {
+#if CV_SIMD128
+  if (use_simd) return fill_span_simd(s, depth, ids, mask, counters);
+#endif
+  (void)use_simd;
+  fill_span_portable(s, depth, ids, mask, counters);
+}
+
+// The edge set of one triangle: edges bounding x from below / above, and the
+// row range (horizontal edges restrict rows, not columns).
+struct Edges {
+  EdgeWalk lower[2], upper[2];
+  int n_lower = 0, n_upper = 0;
+  std::int64_t y_first = 0, y_last = -1;
+};
+
+// Pixel (x, y) is inside edge a->b if E = dx (Y - Ya) - dy (X - Xa) > 0, or
+// E == 0 on a top or left edge (dy < 0, or dy == 0 and dx > 0), X = x S.
+Edges setup_edges(const FixedTriangle& t, int height) {
+  constexpr std::int64_t S = kSubpixelScale;
+  Edges e;
+  const std::int64_t ymin = std::min({t.y[0], t.y[1], t.y[2]});
+  const std::int64_t ymax = std::max({t.y[0], t.y[1], t.y[2]});
+  e.y_first = std::max<std::int64_t>(0, ceil_div(ymin, S));
+  e.y_last = std::min<std::int64_t>(height - 1, floor_div(ymax, S));
+  for (int i = 0; i < 3; ++i) {
+    const int j = i == 2 ? 0 : i + 1;
+    const std::int64_t dx = t.x[j] - t.x[i], dy = t.y[j] - t.y[i];
+    const bool top_left = dy < 0 || (dy == 0 && dx > 0);
+    if (dy == 0) {  // top edge: rows at or below it; bottom edge: rows strictly above
+      if (dx > 0)
+        e.y_first = std::max(e.y_first, ceil_div(t.y[i], S));
+      else
+        e.y_last = std::min(e.y_last, ceil_div(t.y[i], S) - 1);
+      continue;
+    }
+    // Inside: A x + B(y) + bias >= 0 with A = -dy S; bound x >= N / A (A > 0)
+    // or x <= -N / |A| (A < 0), N = -(B(y) + bias), N falls by dx S per row.
+    const std::int64_t bias = top_left ? 0 : -1;
+    const std::int64_t n0 = -(dx * (e.y_first * S - t.y[i]) + dy * t.x[i] + bias);
+    EdgeWalk w;
+    w.init(n0, dx * S, (dy < 0 ? -dy : dy) * S);
+    if (dy < 0)
+      e.lower[e.n_lower++] = w;
+    else
+      e.upper[e.n_upper++] = w;
+  }
+  return e;
+}
+
+}  // namespace
+
+bool simd_enabled() { return CV_SIMD128 != 0; }
+
+void rasterize(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t id,
+               const Target& target, Counters* counters) {
+  Edges e = setup_edges(tri, target.height);
+  const std::int64_t x_limit = target.width - 1;
+  Span s;
+  s.gx = static_cast<float>(plane.gx);
+  s.iz_min = plane.iz_min;
+  s.iz_max = plane.iz_max;
+  s.id = id;
+  for (std::int64_t y = e.y_first; y <= e.y_last; ++y) {
+    std::int64_t x0 = 0, x1 = x_limit;
+    for (int i = 0; i < e.n_lower; ++i) x0 = std::max(x0, e.lower[i].q);
+    for (int i = 0; i < e.n_upper; ++i) x1 = std::min(x1, -e.upper[i].q);
+    if (x0 <= x1) {
+      s.x0 = static_cast<int>(x0);
+      s.x1 = static_cast<int>(x1);
+      s.iz0 = static_cast<float>(plane.c + plane.gy * static_cast<double>(y) +
+                                 plane.gx * static_cast<double>(x0));
+      const std::ptrdiff_t row = static_cast<std::ptrdiff_t>(y) * target.stride;
+      fill_span(s, target.use_simd, target.depth + row, target.triangle_id + row, target.mask + row,
+                counters);
+      counters->fragments += x1 - x0 + 1;
+    }
+    for (int i = 0; i < e.n_lower; ++i) e.lower[i].step();
+    for (int i = 0; i < e.n_upper; ++i) e.upper[i].step();
+  }
+}
+
+}  // namespace st::raster

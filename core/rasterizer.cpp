@@ -1,0 +1,386 @@
+#include "core/rasterizer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "core/capacity.h"
+#include "core/mask_morphology.h"
+#include "core/raster_clip.h"
+#include "core/raster_triangle.h"
+
+namespace st {
+namespace {
+
+using raster::ClipPlane;
+using raster::ClipPoint;
+using raster::kSubpixelBits;
+using raster::kSubpixelScale;
+
+// Vertex outcode: bit 0 behind the near plane, bits 1-4 beyond the guard
+// band (left, right, top, bottom; these bit positions are also the clip
+// plane indices), bits 5-8 outside the image by more than one pixel.
+constexpr unsigned kNear = 1u << 0;
+constexpr unsigned kGuardShift = 1, kRejectShift = 5;
+constexpr unsigned kClipMask = 0x1Fu;                             // near + guard band
+constexpr unsigned kRejectMask = kNear | (0xFu << kRejectShift);  // trivially outside
+constexpr int kBufferPad = 4;  // elements after the last pixel (SIMD groups)
+
+// Planes through the camera centre with lo <= u <= hi and lo_v <= v <= hi_v
+// (for z > 0), in the order left, right, top, bottom; inside >= 0.
+void side_planes(const Pinhole& K, double lo_u, double hi_u, double lo_v, double hi_v,
+                 ClipPlane* out) {
+  out[0] = {K.fx, 0, K.cx - lo_u, 0};
+  out[1] = {-K.fx, 0, hi_u - K.cx, 0};
+  out[2] = {0, K.fy, K.cy - lo_v, 0};
+  out[3] = {0, -K.fy, hi_v - K.cy, 0};
+}
+
+// Near plane, then the guard band: the clip planes in outcode bit order.
+void clip_planes(const Pinhole& K, double near_mm, ClipPlane* out) {
+  out[0] = {0, 0, 1, -near_mm};
+  const double g = raster::kGuardBandPx;
+  side_planes(K, -g, K.width - 1 + g, -g, K.height - 1 + g, out + 1);
+}
+
+// Round half away from zero to the sub-pixel grid, without libm calls.
+inline std::int32_t snap(double px) {
+  const double s = px * static_cast<double>(kSubpixelScale);
+  const auto i = static_cast<std::int64_t>(s);
+  const double f = s - static_cast<double>(i);
+  return static_cast<std::int32_t>(i + (f >= 0.5) - (f <= -0.5));
+}
+
+// 1/z of the triangle's plane is affine in the pixel coordinates: with
+// n = (p1 - p0) x (p2 - p0), d = n . p0 and the ray r(u, v) of a pixel,
+// z n . r = d, so 1/z = n . r(u, v) / d. Exact for clipped pieces as well.
+bool depth_plane(const ClipPoint& p0, const ClipPoint& p1, const ClipPoint& p2, const Pinhole& K,
+                 double z_min, double z_max, raster::DepthPlane* plane, double* d_out) {
+  const double ax = p1.x - p0.x, ay = p1.y - p0.y, az = p1.z - p0.z;
+  const double bx = p2.x - p0.x, by = p2.y - p0.y, bz = p2.z - p0.z;
+  const double nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
+  const double d = nx * p0.x + ny * p0.y + nz * p0.z;
+  *d_out = d;
+  if (!(std::abs(d) > 0.0) || !std::isfinite(d)) return false;  // plane through the eye
+  const double inv_d = 1.0 / d;
+  plane->gx = nx / K.fx * inv_d;
+  plane->gy = ny / K.fy * inv_d;
+  plane->c = (nz - nx * K.cx / K.fx - ny * K.cy / K.fy) * inv_d;
+  plane->iz_min = static_cast<float>(1.0 / z_max);
+  plane->iz_max = static_cast<float>(1.0 / z_min);
+  return true;
+}
+
+// Some pixel centre (integer coordinates) inside the snapped bounding box?
+bool covers_pixel_centre(std::int64_t lo, std::int64_t hi, int size) {
+  const std::int64_t first = std::max<std::int64_t>(0, (lo + kSubpixelScale - 1) >> kSubpixelBits);
+  const std::int64_t last = std::min<std::int64_t>(size - 1, hi >> kSubpixelBits);
+  return first <= last;
+}
+
+}  // namespace
+
+Status MeshRasterizer::configure(const Mesh& mesh, const RasterConfig& config) {
+  configured_ = rendered_ = false;
+  if (config.width <= 0 || config.height <= 0 || config.width > kMaxImageWidth ||
+      config.height > kMaxImageHeight)
+    return make_error("rasteriser: image size " + std::to_string(config.width) + "x" +
+                      std::to_string(config.height) + " outside 1x1.." +
+                      std::to_string(kMaxImageWidth) + "x" + std::to_string(kMaxImageHeight));
+  if (config.downscale != 1 && config.downscale != 2 && config.downscale != 4)
+    return make_error("rasteriser: downscale must be 1, 2 or 4, got " +
+                      std::to_string(config.downscale));
+  if (config.width < config.downscale || config.height < config.downscale)
+    return make_error("rasteriser: image smaller than one raster pixel at this downscale");
+  if (!(config.near_mm > 0.0) || !std::isfinite(config.near_mm))
+    return make_error("rasteriser: near_mm must be positive and finite");
+  const std::size_t nv = mesh.x.size();
+  if (mesh.y.size() != nv || mesh.z.size() != nv)
+    return make_error("rasteriser: mesh x/y/z arrays differ in length");
+  if (mesh.tri.size() % 3 != 0)
+    return make_error("rasteriser: mesh index array is not a multiple of 3");
+  if (nv == 0 || mesh.tri.empty()) return make_error("rasteriser: mesh has no triangles");
+  if (static_cast<std::int64_t>(nv) > kMaxMeshVertices || mesh.triangle_count() > kMaxMeshTriangles)
+    return make_error("rasteriser: mesh larger than the compile-time capacity");
+  for (std::int32_t i : mesh.tri)
+    if (i < 0 || static_cast<std::size_t>(i) >= nv)
+      return make_error("rasteriser: triangle index " + std::to_string(i) + " outside 0.." +
+                        std::to_string(nv - 1));
+  for (std::size_t i = 0; i < nv; ++i)
+    if (!std::isfinite(mesh.x[i]) || !std::isfinite(mesh.y[i]) || !std::isfinite(mesh.z[i]))
+      return make_error("rasteriser: vertex " + std::to_string(i) + " is not finite");
+
+  config_ = config;
+  raster_width_ = config.width / config.downscale;
+  raster_height_ = config.height / config.downscale;
+  model_x_ = mesh.x;
+  model_y_ = mesh.y;
+  model_z_ = mesh.z;
+  tri_ = mesh.tri;
+  cam_x_.assign(nv, 0.0);
+  cam_y_.assign(nv, 0.0);
+  cam_z_.assign(nv, 0.0);
+  outcode_.assign(nv, 0);
+  snap_x_.assign(nv, 0);
+  snap_y_.assign(nv, 0);
+  const std::size_t pixels = static_cast<std::size_t>(raster_width_) * raster_height_;
+  depth_buf_.assign(pixels + kBufferPad, 0.0f);
+  id_buf_.assign(pixels + kBufferPad, -1);
+  mask_buf_.assign(pixels + kBufferPad, 0);
+  visible_bits_.assign((tri_.size() / 3 + 63) / 64, 0);
+  morph_rows_.assign(pixels, 0);
+  morph_counts_.assign(raster_width_, 0);
+  morph_prefix_.assign(raster_width_ + 1, 0);
+  covered_pixels_ = 0;
+  stats_ = {};
+  configured_ = true;
+  return Status::Ok();
+}
+
+void MeshRasterizer::clear_buffers() {
+  std::fill(depth_buf_.begin(), depth_buf_.end(), 0.0f);
+  std::fill(id_buf_.begin(), id_buf_.end(), -1);
+  std::fill(mask_buf_.begin(), mask_buf_.end(), std::uint8_t{0});
+}
+
+raster::Target MeshRasterizer::target() {
+  raster::Target t;
+  t.depth = depth_buf_.data();
+  t.triangle_id = id_buf_.data();
+  t.mask = mask_buf_.data();
+  t.width = raster_width_;
+  t.height = raster_height_;
+  t.stride = raster_width_;
+  t.use_simd = config_.use_simd;
+  return t;
+}
+
+void MeshRasterizer::render(const SE3& T_camera_model, const Pinhole& K_full) {
+  T_camera_model_ = T_camera_model;
+  const double s = 1.0 / config_.downscale;
+  camera_ = K_full.scaled(s, raster_width_, raster_height_);
+  covered_pixels_ = 0;
+  stats_ = {};
+  rendered_ = configured_;
+  if (!configured_) return;
+  clear_buffers();
+  const bool intrinsics_ok = K_full.fx > 0 && K_full.fy > 0 && std::isfinite(K_full.fx) &&
+                             std::isfinite(K_full.fy) && std::isfinite(K_full.cx) &&
+                             std::isfinite(K_full.cy);
+  if (!intrinsics_ok || !T_camera_model.all_finite()) return;
+  transform_vertices();
+  const raster::Target tgt = target();
+  raster::Counters counters;
+  const int n = static_cast<int>(tri_.size() / 3);
+  for (int t = 0; t < n; ++t) draw_triangle(t, tgt, &counters);
+  stats_.fragments = counters.fragments;
+  covered_pixels_ = counters.newly_covered;
+}
+
+// Camera-frame coordinates, outcodes and snapped positions of every vertex,
+// once per render.
+void MeshRasterizer::transform_vertices() {
+  const Mat3& R = T_camera_model_.rotation();
+  const Vec3& t = T_camera_model_.translation();
+  const Pinhole& K = camera_;
+  const double near_mm = config_.near_mm, g = raster::kGuardBandPx;
+  const double guard_lo = -g, guard_hi_u = K.width - 1 + g, guard_hi_v = K.height - 1 + g;
+  const double in_lo = -1.0, in_hi_u = K.width, in_hi_v = K.height;
+  ClipPlane reject[4];
+  side_planes(K, in_lo, in_hi_u, in_lo, in_hi_v, reject);
+  const std::size_t nv = model_x_.size();
+  for (std::size_t i = 0; i < nv; ++i) {
+    const double mx = model_x_[i], my = model_y_[i], mz = model_z_[i];
+    const double x = R(0, 0) * mx + R(0, 1) * my + R(0, 2) * mz + t.x();
+    const double y = R(1, 0) * mx + R(1, 1) * my + R(1, 2) * mz + t.y();
+    const double z = R(2, 0) * mx + R(2, 1) * my + R(2, 2) * mz + t.z();
+    cam_x_[i] = x;
+    cam_y_[i] = y;
+    cam_z_[i] = z;
+    unsigned code = 0;
+    if (z >= near_mm) {
+      const double inv_z = 1.0 / z;
+      const double u = K.fx * x * inv_z + K.cx, v = K.fy * y * inv_z + K.cy;
+      code |= (u < guard_lo) << kGuardShift | (u > guard_hi_u) << (kGuardShift + 1) |
+              (v < guard_lo) << (kGuardShift + 2) | (v > guard_hi_v) << (kGuardShift + 3);
+      code |= (u < in_lo) << kRejectShift | (u > in_hi_u) << (kRejectShift + 1) |
+              (v < in_lo) << (kRejectShift + 2) | (v > in_hi_v) << (kRejectShift + 3);
+      if (!(code & kClipMask)) {
+        snap_x_[i] = snap(u);
+        snap_y_[i] = snap(v);
+      }
+    } else {
+      // Behind the near plane: the side tests still hold as half-spaces
+      // through the eye, which is all the trivial reject needs.
+      code = kNear;
+      const ClipPoint p{x, y, z};
+      for (unsigned k = 0; k < 4; ++k)
+        if (reject[k].distance(p) < 0) code |= 1u << (kRejectShift + k);
+    }
+    outcode_[i] = static_cast<std::uint16_t>(code);
+  }
+}
+
+void MeshRasterizer::draw_triangle(int t, const raster::Target& tgt, raster::Counters* counters) {
+  const std::int32_t i0 = tri_[3 * t], i1 = tri_[3 * t + 1], i2 = tri_[3 * t + 2];
+  const unsigned c0 = outcode_[i0], c1 = outcode_[i1], c2 = outcode_[i2];
+  if (c0 & c1 & c2 & kRejectMask) {
+    ++stats_.triangles_outside;
+    return;
+  }
+  if ((c0 | c1 | c2) & kClipMask) {
+    draw_clipped(t, tgt, counters);
+    return;
+  }
+  const std::int64_t x0 = snap_x_[i0], y0 = snap_y_[i0], x1 = snap_x_[i1], y1 = snap_y_[i1],
+                     x2 = snap_x_[i2], y2 = snap_y_[i2];
+  const std::int64_t area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0);
+  // Image y points down: a face seen from outside has negative signed area.
+  const bool front = area < 0;
+  if (area == 0 || (!front && config_.cull_backfaces) ||
+      !covers_pixel_centre(std::min({x0, x1, x2}), std::max({x0, x1, x2}), tgt.width) ||
+      !covers_pixel_centre(std::min({y0, y1, y2}), std::max({y0, y1, y2}), tgt.height)) {
+    ++stats_.triangles_culled;
+    return;
+  }
+  const ClipPoint p0{cam_x_[i0], cam_y_[i0], cam_z_[i0]}, p1{cam_x_[i1], cam_y_[i1], cam_z_[i1]},
+      p2{cam_x_[i2], cam_y_[i2], cam_z_[i2]};
+  raster::DepthPlane plane;
+  double d;
+  if (!depth_plane(p0, p1, p2, camera_, std::min({p0.z, p1.z, p2.z}), std::max({p0.z, p1.z, p2.z}),
+                   &plane, &d)) {
+    ++stats_.triangles_culled;
+    return;
+  }
+  // Positive area for the edge walker: swap two vertices of front faces.
+  const raster::FixedTriangle ft = front ? raster::FixedTriangle{{x0, x2, x1}, {y0, y2, y1}}
+                                         : raster::FixedTriangle{{x0, x1, x2}, {y0, y1, y2}};
+  ++stats_.triangles_drawn;
+  raster::rasterize(ft, plane, t, tgt, counters);
+}
+
+// Near-plane / guard-band crossing: clip in the camera frame, then draw the
+// convex remainder as a fan (its inner edges are shared exactly, so the fill
+// rule covers every pixel once). All pieces use the original triangle's plane.
+void MeshRasterizer::draw_clipped(int t, const raster::Target& tgt, raster::Counters* counters) {
+  const std::int32_t i0 = tri_[3 * t], i1 = tri_[3 * t + 1], i2 = tri_[3 * t + 2];
+  ClipPoint poly[raster::kMaxClipVertices] = {{cam_x_[i0], cam_y_[i0], cam_z_[i0]},
+                                              {cam_x_[i1], cam_y_[i1], cam_z_[i1]},
+                                              {cam_x_[i2], cam_y_[i2], cam_z_[i2]}};
+  raster::DepthPlane plane;
+  double d = 0;
+  // Orientation from 3D (the eye sees the front side where d = n . p0 < 0).
+  depth_plane(poly[0], poly[1], poly[2], camera_, 1.0, 1.0, &plane, &d);
+  const bool front = d < 0;
+  if (!(d != 0.0) || (!front && config_.cull_backfaces)) {
+    ++stats_.triangles_culled;
+    return;
+  }
+  ClipPlane planes[raster::kMaxClipPlanes];
+  clip_planes(camera_, config_.near_mm, planes);
+  const int n = raster::clip_polygon(poly, 3, planes, kClipMask);
+  if (n == 0) {
+    ++stats_.triangles_outside;
+    return;
+  }
+  std::int64_t sx[raster::kMaxClipVertices], sy[raster::kMaxClipVertices];
+  double z_min = poly[0].z, z_max = poly[0].z;
+  for (int k = 0; k < n; ++k) {
+    sx[k] = snap(camera_.fx * poly[k].x / poly[k].z + camera_.cx);
+    sy[k] = snap(camera_.fy * poly[k].y / poly[k].z + camera_.cy);
+    z_min = std::min(z_min, poly[k].z);
+    z_max = std::max(z_max, poly[k].z);
+  }
+  const ClipPoint p0{cam_x_[i0], cam_y_[i0], cam_z_[i0]}, p1{cam_x_[i1], cam_y_[i1], cam_z_[i1]},
+      p2{cam_x_[i2], cam_y_[i2], cam_z_[i2]};
+  if (!depth_plane(p0, p1, p2, camera_, z_min, z_max, &plane, &d)) return;
+  ++stats_.triangles_clipped;
+  ++stats_.triangles_drawn;
+  for (int k = 1; k + 1 < n; ++k) {
+    const std::int64_t area =
+        (sx[k] - sx[0]) * (sy[k + 1] - sy[0]) - (sy[k] - sy[0]) * (sx[k + 1] - sx[0]);
+    if (area == 0 || (area < 0) != front) continue;  // collapsed by snapping
+    const raster::FixedTriangle ft =
+        front ? raster::FixedTriangle{{sx[0], sx[k + 1], sx[k]}, {sy[0], sy[k + 1], sy[k]}}
+              : raster::FixedTriangle{{sx[0], sx[k], sx[k + 1]}, {sy[0], sy[k], sy[k + 1]}};
+    raster::rasterize(ft, plane, t, tgt, counters);
+  }
+}
+
+ImageView<const float> MeshRasterizer::depth() const {
+  if (!configured_) return {};
+  return ImageView<const float>(depth_buf_.data(), raster_width_, raster_height_);
+}
+ImageView<const std::int32_t> MeshRasterizer::triangle_id() const {
+  if (!configured_) return {};
+  return ImageView<const std::int32_t>(id_buf_.data(), raster_width_, raster_height_);
+}
+ImageView<const std::uint8_t> MeshRasterizer::mask() const {
+  if (!configured_) return {};
+  return ImageView<const std::uint8_t>(mask_buf_.data(), raster_width_, raster_height_);
+}
+
+Vec2 MeshRasterizer::full_to_raster(const Vec2& px_full) const {
+  const double s = 1.0 / config_.downscale;
+  return {(px_full.x() + 0.5) * s - 0.5, (px_full.y() + 0.5) * s - 0.5};
+}
+
+bool MeshRasterizer::depth_at(const Vec2& px_raster, float* depth_mm) const {
+  if (!rendered_ || !px_raster.allFinite()) return false;
+  const ImageView<const float> D = depth();
+  const double x = px_raster.x(), y = px_raster.y();
+  if (x < -0.5 || y < -0.5 || x >= D.width - 0.5 || y >= D.height - 0.5) return false;
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  if (x0 >= 0 && y0 >= 0 && x0 + 1 < D.width && y0 + 1 < D.height) {
+    const double d00 = D(x0, y0), d10 = D(x0 + 1, y0), d01 = D(x0, y0 + 1), d11 = D(x0 + 1, y0 + 1);
+    const double lo = std::min({d00, d10, d01, d11}), hi = std::max({d00, d10, d01, d11});
+    if (lo > 0.0 && hi - lo <= kSameSurfaceRelDepth * lo) {
+      const double ax = x - x0, ay = y - y0;
+      *depth_mm = static_cast<float>((1 - ay) * ((1 - ax) * d00 + ax * d10) +
+                                     ay * ((1 - ax) * d01 + ax * d11));
+      return true;
+    }
+  }
+  const int xn = static_cast<int>(std::floor(x + 0.5)), yn = static_cast<int>(std::floor(y + 0.5));
+  if (!D.contains(xn, yn) || D(xn, yn) <= 0.0f) return false;
+  *depth_mm = D(xn, yn);
+  return true;
+}
+
+Vec3 MeshRasterizer::model_point(const Vec2& px_raster, double depth_mm) const {
+  const Vec3 p_camera = camera_.unproject(px_raster, depth_mm);
+  const Mat3& R = T_camera_model_.rotation();
+  return R.transpose() * (p_camera - T_camera_model_.translation());
+}
+
+void MeshRasterizer::morph_mask(int k, ImageView<std::uint8_t> out) const {
+  if (!configured_ || out.empty() || out.width != raster_width_ || out.height != raster_height_)
+    return;
+  MorphScratch scratch{ImageView<std::uint8_t>(morph_rows_.data(), raster_width_, raster_height_),
+                       morph_counts_.data(), morph_prefix_.data()};
+  morph_square(mask(), k, out, scratch);
+}
+
+int MeshRasterizer::visible_triangles(std::int32_t* out, int capacity) const {
+  if (!rendered_) return 0;
+  std::fill(visible_bits_.begin(), visible_bits_.end(), 0);
+  const std::size_t pixels = static_cast<std::size_t>(raster_width_) * raster_height_;
+  std::int32_t last = -1;
+  for (std::size_t i = 0; i < pixels; ++i) {
+    const std::int32_t id = id_buf_[i];
+    if (id == last || id < 0) continue;
+    last = id;
+    visible_bits_[static_cast<std::size_t>(id) >> 6] |= std::uint64_t{1} << (id & 63);
+  }
+  int count = 0;
+  for (std::size_t w = 0; w < visible_bits_.size(); ++w) {
+    for (std::uint64_t bits = visible_bits_[w]; bits; bits &= bits - 1) {
+      if (count < capacity && out)
+        out[count] = static_cast<std::int32_t>(w * 64 + __builtin_ctzll(bits));
+      ++count;
+    }
+  }
+  return count;
+}
+
+}  // namespace st

@@ -1,0 +1,78 @@
+// Whitespace-separated tokens and locale-free numbers over a byte view.
+// Shared by the text parsers (ASCII PLY/STL, TUM, markers). Never
+// allocates; tracks the line number for error messages.
+#pragma once
+
+#include <charconv>
+#include <cstddef>
+#include <string>
+#include <string_view>
+
+namespace st {
+
+class TextScanner {
+ public:
+  explicit TextScanner(std::string_view text) : text_(text) {}
+
+  // Next token (maximal run of non-whitespace) or empty at the end.
+  std::string_view next_token() {
+    skip_space();
+    const std::size_t start = pos_;
+    while (pos_ < text_.size() && !is_space(text_[pos_])) ++pos_;
+    return text_.substr(start, pos_ - start);
+  }
+  // Skips the rest of the current line including its '\n'.
+  void skip_line() {
+    while (pos_ < text_.size() && text_[pos_] != '\n') ++pos_;
+    if (pos_ < text_.size()) {
+      ++pos_;
+      ++line_;
+    }
+  }
+  bool at_end() {
+    skip_space();
+    return pos_ >= text_.size();
+  }
+  int line() const { return line_; }
+  std::size_t position() const { return pos_; }
+  std::size_t remaining() const { return text_.size() - pos_; }
+
+ private:
+  static bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f'; }
+  void skip_space() {
+    while (pos_ < text_.size() && is_space(text_[pos_])) {
+      if (text_[pos_] == '\n') ++line_;
+      ++pos_;
+    }
+  }
+  std::string_view text_;
+  std::size_t pos_ = 0;
+  int line_ = 1;
+};
+
+// Whole-token decimal number ("1", "-2.5e3", "+4"); false on junk, empty,
+// or out of range. NaN/inf parse (from_chars accepts them): callers that
+// need finite values check std::isfinite.
+inline bool parse_double(std::string_view tok, double* out) {
+  if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+  if (tok.empty()) return false;
+  const auto [end, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), *out);
+  return ec == std::errc() && end == tok.data() + tok.size();
+}
+
+inline bool parse_int64(std::string_view tok, long long* out) {
+  if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
+  if (tok.empty()) return false;
+  const auto [end, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), *out);
+  return ec == std::errc() && end == tok.data() + tok.size();
+}
+
+// A short, printable excerpt of untrusted bytes for an error message.
+inline std::string quote_bytes(std::string_view s, std::size_t max_chars = 40) {
+  std::string out = "'";
+  for (char c : s.substr(0, max_chars)) out += (c >= 32 && c < 127) ? c : '?';
+  if (s.size() > max_chars) out += "...";
+  return out + "'";
+}
+
+}  // namespace st

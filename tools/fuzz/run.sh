@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets in build-fuzz/ and runs each for SECONDS
+# (default 60), one at a time, from the seeds in tools/fuzz/seeds.
+#   tools/fuzz/run.sh [SECONDS] [target...]     targets: y4m ply stl sequence_yaml tum markers
+# Crashes land in build-fuzz/fuzz-out/<target>/crash-*; reproduce with
+#   build-fuzz/bin/fuzz_<target> build-fuzz/fuzz-out/<target>/crash-...
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+seconds=${1:-60}
+shift || true
+targets=("$@")
+[[ ${#targets[@]} -gt 0 ]] || targets=(y4m ply stl sequence_yaml tum markers)
+cmake -S . -B build-fuzz -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
+  -DSCOPETRACK_FUZZ=ON -DSCOPETRACK_BUILD_TESTS=OFF -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+cmake --build build-fuzz -j"$(nproc)" --target $(printf 'fuzz_%s ' "${targets[@]}")
+for t in "${targets[@]}"; do
+  out=build-fuzz/fuzz-out/$t
+  mkdir -p "$out/corpus"
+  cp -n tools/fuzz/seeds/$t/* "$out/corpus/" 2>/dev/null || true
+  echo "== fuzz_$t for ${seconds}s"
+  ASAN_OPTIONS=detect_leaks=1 build-fuzz/bin/fuzz_$t -max_total_time="$seconds" -max_len=65536 \
+    -rss_limit_mb=2048 -artifact_prefix="$out/" -print_final_stats=1 "$out/corpus" 2>"$out/log.txt" || {
+    echo "fuzz_$t FAILED: see $out/log.txt"; tail -30 "$out/log.txt"; exit 1; }
+  grep -E "stat::number_of_executed_units|stat::peak_rss_mb" "$out/log.txt" | sed "s/^/  /"
+done
