@@ -34,7 +34,8 @@ double liver_radius(const Vec3& d, const LiverShape& s, const Noise3& noise) {
   const double a = d.x() < 0 ? s.right_lobe_x_mm : s.left_lobe_x_mm;
   const double b = s.half_depth_mm * (d.y() > 0 ? 1.0 : 0.9);
   // The left lobe thins out: thickness falls from the right lobe to the tip.
-  const double taper = 1.0 - 0.6 * smoothstep(-0.3, 0.95, d.x());
+  // It also thins towards the sharp anterior (+y) border.
+  const double taper = (1.0 - 0.6 * smoothstep(-0.3, 0.95, d.x())) * (1.0 - 0.45 * smoothstep(0.0, 0.95, d.y()));
   const double c = (d.z() > 0 ? s.dome_mm : s.visceral_mm) * taper;
   const double q = (d.x() / a) * (d.x() / a) + (d.y() / b) * (d.y() / b) + (d.z() / c) * (d.z() / c);
   double r = 1.0 / std::sqrt(q);
@@ -44,11 +45,11 @@ double liver_radius(const Vec3& d, const LiverShape& s, const Noise3& noise) {
   r *= 1.0 + 0.08 * std::exp(-(d - Vec3(-0.1, -0.4, -0.7)).squaredNorm() / 0.08);
   r *= 1.0 + 0.06 * std::exp(-(d - Vec3(0.5, 0.6, 0.1)).squaredNorm() / 0.10);
   const double groove = d.x() - 0.15 - 0.2 * d.y();
-  r *= 1.0 - 0.07 * std::exp(-groove * groove / 0.004) * smoothstep(-0.2, 0.4, d.z());
+  r *= 1.0 - 0.035 * std::exp(-groove * groove / 0.012) * smoothstep(-0.2, 0.4, d.z());
   // Anterior inferior edge notch (gallbladder fossa).
   r *= 1.0 - 0.08 * std::exp(-(d - Vec3(-0.2, 0.85, -0.3)).squaredNorm() / 0.03);
   r *= 1.0 + s.lobe_noise * static_cast<double>(noise.fbm(static_cast<float>(1.5 * d.x()), static_cast<float>(1.5 * d.y()),
-                                      static_cast<float>(1.5 * d.z()), 3));
+                                      static_cast<float>(1.5 * d.z()), 2));
   return r;
 }
 

@@ -18,7 +18,7 @@ struct LiverShape {
   double half_depth_mm = 50;    // y half-extent
   double dome_mm = 40;          // z half-extent above (diaphragmatic dome)
   double visceral_mm = 27;      // z half-extent below (flatter visceral face)
-  double lobe_noise = 0.05;     // low-frequency radial irregularity (fraction)
+  double lobe_noise = 0.04;     // low-frequency radial irregularity (fraction)
   std::uint64_t seed = 1;
 };
 

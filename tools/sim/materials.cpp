@@ -9,18 +9,18 @@ Material material(MaterialId id) {
   Material m;
   switch (id) {
     case MaterialId::Liver:  // dark red-brown, smooth, glossy, faint vessels
-      m.base = {0.30f, 0.040f, 0.032f};
-      m.alt = {0.21f, 0.045f, 0.050f};
-      m.vessel = {0.13f, 0.018f, 0.030f};
+      m.base = {0.26f, 0.030f, 0.026f};
+      m.alt = {0.19f, 0.034f, 0.040f};
+      m.vessel = {0.12f, 0.016f, 0.026f};
       m.vessel_width = 0.05f;
       m.vessel_strength = 0.35f;
       m.speckle_strength = 0.07f;
-      m.specular = 0.45f;
-      m.shininess_log2 = 5;
+      m.specular = 0.7f;
+      m.shininess_log2 = 7;
       break;
     case MaterialId::Fat:  // yellow lobulated omentum with red vessels
-      m.base = {0.80f, 0.42f, 0.06f};
-      m.alt = {0.70f, 0.30f, 0.05f};
+      m.base = {0.80f, 0.46f, 0.08f};
+      m.alt = {0.70f, 0.34f, 0.06f};
       m.variation_mm = 40.0f;
       m.vessel = {0.40f, 0.02f, 0.02f};
       m.vessel_mm = 30.0f;
@@ -44,8 +44,8 @@ Material material(MaterialId id) {
       m.shininess_log2 = 4;
       break;
     case MaterialId::Neighbour:  // gallbladder-like: pale blue-white, red vessels
-      m.base = {0.55f, 0.55f, 0.62f};
-      m.alt = {0.45f, 0.50f, 0.45f};
+      m.base = {0.40f, 0.42f, 0.48f};
+      m.alt = {0.36f, 0.40f, 0.36f};
       m.vessel = {0.45f, 0.05f, 0.05f};
       m.vessel_mm = 14.0f;
       m.vessel_width = 0.04f;
@@ -82,20 +82,24 @@ Vec3f Texture::albedo_at_vertex(const Material& m, const Vec3f& p) const {
   return a;
 }
 
-Vec3f Texture::detail_at(const Material& m, const Vec3f& p, const Vec3f& albedo) const {
-  Vec3f a = albedo;
+Texture::Detail Texture::detail_sample(const Material& m, const Vec3f& p) const {
+  Detail d;
   if (m.vessel_width > 0.0f) {
     const float f = 1.0f / m.vessel_mm;
     // Two scales of zero-crossing lines: trunks and thinner branches.
     const float v1 = detail_.ridge(p.x() * f, p.y() * f, p.z() * f, m.vessel_width);
     const float v2 = detail_.ridge(p.x() * f * 2.3f + 7.7f, p.y() * f * 2.3f, p.z() * f * 2.3f,
                                    m.vessel_width * 0.8f);
-    const float v = std::min(1.0f, v1 + 0.6f * v2) * m.vessel_strength;
-    a += v * (m.vessel - a);
+    d.vessel = std::min(1.0f, v1 + 0.6f * v2);
   }
   const float s = 1.0f / m.speckle_mm;
-  const float sp = detail_.value(p.x() * s, p.y() * s, p.z() * s) - 0.5f;
-  return a * (1.0f + 2.0f * m.speckle_strength * sp);
+  d.speckle = std::clamp(detail_.value(p.x() * s, p.y() * s, p.z() * s), 0.0f, 1.0f);
+  return d;
+}
+
+Vec3f Texture::apply_detail(const Material& m, const Vec3f& albedo, float vessel, float speckle) {
+  const Vec3f a = albedo + (vessel * m.vessel_strength) * (m.vessel - albedo);
+  return a * (1.0f + 2.0f * m.speckle_strength * (speckle - 0.5f));
 }
 
 }  // namespace st::sim

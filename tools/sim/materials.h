@@ -39,9 +39,18 @@ class Texture {
   explicit Texture(std::uint64_t seed) : noise_(seed), detail_(seed ^ 0x5A5A5A5Aull) {}
   // Per-vertex albedo: base/alt blend, lobule creases, brightness variation.
   Vec3f albedo_at_vertex(const Material& m, const Vec3f& p_mm) const;
-  // Per-pixel: albedo after vessels and speckle, from the interpolated
-  // vertex albedo. Allocation-free.
-  Vec3f detail_at(const Material& m, const Vec3f& p_mm, const Vec3f& albedo) const;
+  // Fine detail at a point: vessel weight and speckle, both in [0, 1]
+  // (the renderer bakes these into per-triangle texel grids).
+  struct Detail {
+    float vessel = 0, speckle = 0.5f;
+  };
+  Detail detail_sample(const Material& m, const Vec3f& p_mm) const;
+  // Albedo after vessels and speckle, from the interpolated vertex albedo.
+  static Vec3f apply_detail(const Material& m, const Vec3f& albedo, float vessel, float speckle);
+  Vec3f detail_at(const Material& m, const Vec3f& p_mm, const Vec3f& albedo) const {
+    const Detail d = detail_sample(m, p_mm);
+    return apply_detail(m, albedo, d.vessel, d.speckle);
+  }
 
  private:
   Noise3 noise_;

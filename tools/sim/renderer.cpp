@@ -16,9 +16,10 @@ constexpr int kGammaLut = 4096;
 
 }  // namespace
 
-void SceneRenderer::prepare_mesh(const Mesh& mesh, const std::vector<MaterialId>& material,
+void SceneRenderer::prepare_mesh(const Mesh& mesh, const std::vector<MaterialId>& material, int texels,
                                  ShadeMesh* out) {
   out->mesh = &mesh;
+  out->texels = texels;
   out->normal = vertex_normals(mesh);
   out->material = material;
   out->albedo.resize(static_cast<std::size_t>(mesh.vertex_count()));
@@ -45,6 +46,28 @@ void SceneRenderer::prepare_mesh(const Mesh& mesh, const std::vector<MaterialId>
       s[6 + k] = static_cast<float>(m2[k]);
     }
   }
+  bake_detail(out);
+}
+
+void SceneRenderer::bake_detail(ShadeMesh* sm) const {
+  const Mesh& mesh = *sm->mesh;
+  const int n = sm->texels;
+  sm->detail.resize(static_cast<std::size_t>(mesh.triangle_count()) * n * n * 2);
+  std::uint8_t* out = sm->detail.data();
+  for (int t = 0; t < mesh.triangle_count(); ++t) {
+    const Vec3f v0 = mesh.vertex(mesh.tri[3 * t]).cast<float>();
+    const Vec3f e1 = mesh.vertex(mesh.tri[3 * t + 1]).cast<float>() - v0;
+    const Vec3f e2 = mesh.vertex(mesh.tri[3 * t + 2]).cast<float>() - v0;
+    const Material& m = materials_[static_cast<int>(sm->material[t])];
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const float b1 = static_cast<float>(i) / static_cast<float>(n - 1);
+        const float b2 = static_cast<float>(j) / static_cast<float>(n - 1);
+        const Texture::Detail d = texture_.detail_sample(m, v0 + b1 * e1 + b2 * e2);
+        *out++ = static_cast<std::uint8_t>(std::lround(255.0f * d.vessel));
+        *out++ = static_cast<std::uint8_t>(std::lround(255.0f * d.speckle));
+      }
+  }
 }
 
 Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settings) {
@@ -58,11 +81,13 @@ Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settin
   if (K_ideal_.width > kMaxImageWidth || K_ideal_.height > kMaxImageHeight)
     return make_error("the distortion needs an ideal image of " + std::to_string(K_ideal_.width) + "x" +
                       std::to_string(K_ideal_.height) + " pixels, above the image capacity");
-  prepare_mesh(scene.organ, std::vector<MaterialId>(static_cast<std::size_t>(scene.organ.triangle_count()), MaterialId::Liver), &organ_);
-  prepare_mesh(scene.background, scene.background_material, &background_);
-  prepare_mesh(scene.instrument,
-               std::vector<MaterialId>(static_cast<std::size_t>(scene.instrument.triangle_count()), MaterialId::Instrument),
-               &instrument_);
+  // Texel grids: ~0.3 mm on the organ (2-3 mm triangles), ~0.5 mm on the
+  // floor (6 mm cells), coarse on the plain instrument.
+  const auto organ_tris = static_cast<std::size_t>(scene.organ.triangle_count());
+  prepare_mesh(scene.organ, std::vector<MaterialId>(organ_tris, MaterialId::Liver), 8, &organ_);
+  prepare_mesh(scene.background, scene.background_material, 12, &background_);
+  const auto instrument_tris = static_cast<std::size_t>(scene.instrument.triangle_count());
+  prepare_mesh(scene.instrument, std::vector<MaterialId>(instrument_tris, MaterialId::Instrument), 4, &instrument_);
   RasterConfig rc;
   rc.width = K_ideal_.width;
   rc.height = K_ideal_.height;
@@ -100,13 +125,16 @@ void SceneRenderer::build_camera_maps() {
       min_y = std::min(min_y, ideal.y());
       max_y = std::max(max_y, ideal.y());
     }
-  // The ideal image: same focal lengths, shifted so it covers every sample.
-  const int ox = static_cast<int>(std::ceil(-min_x)) + 2, oy = static_cast<int>(std::ceil(-min_y)) + 2;
+  // The ideal image: same focal lengths, shifted so it covers every sample
+  // (without distortion it is the output image itself).
+  const bool distorted = !settings_.distortion.is_zero();
+  const int ox = distorted ? static_cast<int>(std::ceil(-min_x)) + 2 : 0;
+  const int oy = distorted ? static_cast<int>(std::ceil(-min_y)) + 2 : 0;
   K_ideal_ = K;
   K_ideal_.cx += ox;
   K_ideal_.cy += oy;
-  K_ideal_.width = static_cast<int>(std::ceil(max_x)) + ox + 3;
-  K_ideal_.height = static_cast<int>(std::ceil(max_y)) + oy + 3;
+  K_ideal_.width = distorted ? static_cast<int>(std::ceil(max_x)) + ox + 3 : W;
+  K_ideal_.height = distorted ? static_cast<int>(std::ceil(max_y)) + oy + 3 : H;
   map_x += static_cast<float>(ox);
   map_y += static_cast<float>(oy);
   nearest_.assign(static_cast<std::size_t>(W) * H, -1);

@@ -33,7 +33,7 @@ struct RenderSettings {
   bool field_stop = false;   // black outside a circle centred on (cx, cy)
   double field_stop_radius_px = 0;  // 0: 0.66 * height
   double vignetting = 0.35;  // relative brightness loss at the image corners
-  double exposure = 1.6;     // linear gain at the reference distance
+  double exposure = 1.1;     // linear gain at the reference distance
   double noise_read = 0.006; // sensor noise sigma, linear units
   double noise_shot = 0.002; // signal-dependent variance per unit signal
   std::uint64_t seed = 1;
@@ -60,9 +60,16 @@ class SceneRenderer {
     std::vector<Vec3f> normal, albedo;
     std::vector<float> solve;  // per triangle: v0 (3), M (2x3): (b1, b2) = M (p - v0)
     std::vector<MaterialId> material;
+    // Fine detail baked per triangle: an n x n grid over (b1, b2) of
+    // (vessel, speckle) bytes, sampled bilinearly. Grid points beyond the
+    // b1 + b2 = 1 edge hold the texture continued over the triangle's
+    // plane, so interpolation never reads undefined texels.
+    int texels = 8;
+    std::vector<std::uint8_t> detail;
     const Mesh* mesh = nullptr;
   };
-  void prepare_mesh(const Mesh& mesh, const std::vector<MaterialId>& material, ShadeMesh* out);
+  void prepare_mesh(const Mesh& mesh, const std::vector<MaterialId>& material, int texels, ShadeMesh* out);
+  void bake_detail(ShadeMesh* sm) const;
   void build_camera_maps();
   struct Xf {  // a rigid transform in float for the per-pixel loop
     Eigen::Matrix3f R;

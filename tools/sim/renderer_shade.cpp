@@ -81,7 +81,17 @@ Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, std::int32_t 
   const Vec3f n = (b0 * sm.normal[v[0]] + b1 * sm.normal[v[1]] + b2 * sm.normal[v[2]]).normalized();
   const Vec3f albedo0 = b0 * sm.albedo[v[0]] + b1 * sm.albedo[v[1]] + b2 * sm.albedo[v[2]];
   const Material& mat = materials_[static_cast<int>(sm.material[tri])];
-  const Vec3f albedo = texture_.detail_at(mat, p_m, albedo0);
+  // Baked detail, bilinear over the triangle's texel grid.
+  const int g = sm.texels;
+  const float gx = b1 * static_cast<float>(g - 1), gy = b2 * static_cast<float>(g - 1);
+  const int ix = std::min(static_cast<int>(gx), g - 2), iy = std::min(static_cast<int>(gy), g - 2);
+  const float fx = gx - static_cast<float>(ix), fy = gy - static_cast<float>(iy);
+  const std::uint8_t* d = &sm.detail[((static_cast<std::size_t>(tri) * g + iy) * g + ix) * 2];
+  const std::uint8_t* d2 = d + 2 * g;
+  const float w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
+  const float vessel = (w00 * d[0] + w10 * d[2] + w01 * d2[0] + w11 * d2[2]) * (1.0f / 255.0f);
+  const float speckle = (w00 * d[1] + w10 * d[3] + w01 * d2[1] + w11 * d2[3]) * (1.0f / 255.0f);
+  const Vec3f albedo = Texture::apply_detail(mat, albedo0, vessel, speckle);
   // Light and eye at the camera centre: l = v = h (Blinn-Phong's half vector).
   const float dist2 = p_c.squaredNorm();
   const float ndl = std::max(0.0f, -n.dot(Rp) / std::sqrt(dist2));

@@ -74,7 +74,7 @@ Trajectory::Trajectory(ScenarioKind kind, const Scene& scene, int frames, std::u
     }
   }
   const double side = azimuth0_ - 70.0 * kDeg;  // away from the orbit sweep
-  hover_world_ = Vec3(-0.2 * box_.size().x(), 0.1 * box_.size().y(), box_.max.z() + 12.0);
+  hover_world_ = Vec3(0.05 * box_.size().x(), -0.1 * box_.size().y(), box_.max.z() + 6.0);
   trocar_world_ = Vec3(0, 0, 0) + spherical(side, 50.0 * kDeg, 260.0);
 }
 
