@@ -97,9 +97,5 @@ Texture::Detail Texture::detail_sample(const Material& m, const Vec3f& p) const 
   return d;
 }
 
-Vec3f Texture::apply_detail(const Material& m, const Vec3f& albedo, float vessel, float speckle) {
-  const Vec3f a = albedo + (vessel * m.vessel_strength) * (m.vessel - albedo);
-  return a * (1.0f + 2.0f * m.speckle_strength * (speckle - 0.5f));
-}
 
 }  // namespace st::sim

@@ -46,7 +46,10 @@ class Texture {
   };
   Detail detail_sample(const Material& m, const Vec3f& p_mm) const;
   // Albedo after vessels and speckle, from the interpolated vertex albedo.
-  static Vec3f apply_detail(const Material& m, const Vec3f& albedo, float vessel, float speckle);
+  static Vec3f apply_detail(const Material& m, const Vec3f& albedo, float vessel, float speckle) {
+    const Vec3f a = albedo + (vessel * m.vessel_strength) * (m.vessel - albedo);
+    return a * (1.0f + 2.0f * m.speckle_strength * (speckle - 0.5f));
+  }
   Vec3f detail_at(const Material& m, const Vec3f& p_mm, const Vec3f& albedo) const {
     const Detail d = detail_sample(m, p_mm);
     return apply_detail(m, albedo, d.vessel, d.speckle);

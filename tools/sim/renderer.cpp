@@ -20,17 +20,17 @@ void SceneRenderer::prepare_mesh(const Mesh& mesh, const std::vector<MaterialId>
                                  ShadeMesh* out) {
   out->mesh = &mesh;
   out->texels = texels;
-  out->normal = vertex_normals(mesh);
+  const std::vector<Vec3f> normal = vertex_normals(mesh);
   out->material = material;
-  out->albedo.resize(static_cast<std::size_t>(mesh.vertex_count()));
+  out->vertex.resize(static_cast<std::size_t>(mesh.vertex_count()));
   // Vertex albedo uses the material of any triangle touching the vertex;
   // materials change only along whole-triangle boundaries, a soft seam.
   std::vector<MaterialId> vmat(static_cast<std::size_t>(mesh.vertex_count()), material.front());
   for (int t = 0; t < mesh.triangle_count(); ++t)
     for (int k = 0; k < 3; ++k) vmat[mesh.tri[3 * t + k]] = material[t];
   for (int i = 0; i < mesh.vertex_count(); ++i)
-    out->albedo[i] = texture_.albedo_at_vertex(materials_[static_cast<int>(vmat[i])],
-                                               mesh.vertex(i).cast<float>());
+    out->vertex[i] = {normal[i], texture_.albedo_at_vertex(materials_[static_cast<int>(vmat[i])],
+                                                           mesh.vertex(i).cast<float>())};
   out->solve.resize(static_cast<std::size_t>(mesh.triangle_count()) * 9);
   for (int t = 0; t < mesh.triangle_count(); ++t) {
     const Vec3 v0 = mesh.vertex(mesh.tri[3 * t]);
@@ -94,14 +94,20 @@ Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settin
   rc.near_mm = 1.0;
   rc.cull_backfaces = true;
   if (Status s = organ_raster_.configure(scene.organ, rc); !s) return s;
-  if (Status s = background_raster_.configure(scene.background, rc); !s) return s;
+  RasterConfig rc_half = rc;
+  rc_half.downscale = 2;
+  if (Status s = background_raster_.configure(scene.background, rc_half); !s) return s;
   if (Status s = instrument_raster_.configure(scene.instrument, rc); !s) return s;
   accum_.create(K_ideal_.height, K_ideal_.width, CV_32FC3);
+  background_half_.create(background_raster_.depth().height, background_raster_.depth().width, CV_32FC3);
   labels_ideal_.create(K_ideal_.height, K_ideal_.width, CV_8U);
   linear_out_.create(settings.K.height, settings.K.width, CV_32FC3);
   Rng rng(mix_seed(settings.seed, 0xC0FFEE));
   gaussian_.resize(kGaussianTable);
   for (float& g : gaussian_) g = static_cast<float>(rng.gaussian());
+  sigma_lut_.resize(256);
+  for (int i = 0; i < 256; ++i)  // brightness i / 255 (linear, mean of R, G, B)
+    sigma_lut_[i] = static_cast<float>(std::sqrt(settings.noise_read * settings.noise_read + settings.noise_shot * i / 255.0));
   gamma_lut_.resize(kGammaLut);
   for (int i = 0; i < kGammaLut; ++i)  // display gamma 1/2.2 (close to BT.709/sRGB)
     gamma_lut_[i] = static_cast<std::uint8_t>(std::lround(255.0 * std::pow(i / (kGammaLut - 1.0), 1.0 / 2.2)));

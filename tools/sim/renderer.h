@@ -57,7 +57,10 @@ class SceneRenderer {
 
  private:
   struct ShadeMesh {  // per-vertex normals/albedo, per-triangle barycentric solve
-    std::vector<Vec3f> normal, albedo;
+    struct VertexShade {  // interleaved: one cache line serves both
+      Vec3f normal, albedo;
+    };
+    std::vector<VertexShade> vertex;
     std::vector<float> solve;  // per triangle: v0 (3), M (2x3): (b1, b2) = M (p - v0)
     std::vector<MaterialId> material;
     // Fine detail baked per triangle: an n x n grid over (b1, b2) of
@@ -78,8 +81,13 @@ class SceneRenderer {
   void render_subframe(const WorldState& state, float weight, bool keep_labels);
   void shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight, bool keep_labels);
   // Radiance (linear) of one ideal pixel on a mesh: light at the camera.
-  Vec3f shade_pixel(const ShadeMesh& sm, const Xf& T_mesh_camera, std::int32_t tri, float x, float y,
+  // ray = ((x - cx) / fx, (y - cy) / fy, 1): the pixel's point is ray * depth.
+  Vec3f shade_pixel(const ShadeMesh& sm, const Xf& T_mesh_camera, const Vec3f& ray, std::int32_t tri,
                     float depth, float irradiance) const;
+  // The background at half resolution (it is rasterised at half size and
+  // mostly far or out of focus); full-resolution pixels sample it bilinearly.
+  void shade_background_half(const Xf& T_world_camera, float irradiance);
+  cv::Vec3f background_at(int x, int y) const;
   void finish(int frame, cv::Mat& rgb, cv::Mat& labels);
 
   RenderSettings settings_;
@@ -91,11 +99,13 @@ class SceneRenderer {
   ShadeMesh organ_, background_, instrument_;
   MeshRasterizer organ_raster_, background_raster_, instrument_raster_;
   cv::Mat accum_;         // ideal image, linear RGB, CV_32FC3
+  cv::Mat background_half_;  // half-resolution background radiance, CV_32FC3
   cv::Mat labels_ideal_;  // CV_8U
   cv::Mat map1_, map2_;   // output -> ideal (fixed point maps for cv::remap)
   std::vector<std::int32_t> nearest_;  // output pixel -> ideal pixel index, -1 outside
   cv::Mat linear_out_;    // output size, CV_32FC3
   std::vector<float> gain_;            // vignetting x field stop, per output pixel
+  std::vector<float> sigma_lut_;       // noise sigma by brightness (256 steps)
   std::vector<float> gaussian_;        // table of N(0, 1) samples for sensor noise
   std::vector<std::uint8_t> gamma_lut_;
 };

@@ -29,7 +29,44 @@ void SceneRenderer::render_subframe(const WorldState& state, float weight, bool 
   // blown out and a far one not black. Irradiance = scale / depth^2.
   const double d_organ = (T_camera_world * (state.T_world_model * organ_centre_model_)).norm();
   const double d_ref = 100.0 * std::pow(std::max(d_organ, 20.0) / 100.0, 0.85);
-  shade_rows(T_mesh_camera, static_cast<float>(settings_.exposure * d_ref * d_ref), weight, keep_labels);
+  const auto irradiance = static_cast<float>(settings_.exposure * d_ref * d_ref);
+  shade_background_half(T_mesh_camera[1], irradiance);
+  shade_rows(T_mesh_camera, irradiance, weight, keep_labels);
+}
+
+void SceneRenderer::shade_background_half(const Xf& T_world_camera, float irradiance) {
+  const ImageView<const float> depth = background_raster_.depth();
+  const ImageView<const std::int32_t> ids = background_raster_.triangle_id();
+  const Pinhole& K = background_raster_.camera();
+  const auto inv_fx = static_cast<float>(1.0 / K.fx), inv_fy = static_cast<float>(1.0 / K.fy);
+  for (int y = 0; y < depth.height; ++y) {
+    auto* out = background_half_.ptr<cv::Vec3f>(y);
+    const float ray_y = static_cast<float>(y - K.cy) * inv_fy;
+    for (int x = 0; x < depth.width; ++x) {
+      const float d = depth(x, y);
+      const std::int32_t tri = ids(x, y);
+      if (d <= 0.0f || tri < 0) {
+        out[x] = cv::Vec3f(0, 0, 0);
+        continue;
+      }
+      const Vec3f ray(static_cast<float>(x - K.cx) * inv_fx, ray_y, 1.0f);
+      const Vec3f c = shade_pixel(background_, T_world_camera, ray, tri, d, irradiance);
+      out[x] = cv::Vec3f(c.x(), c.y(), c.z());
+    }
+  }
+}
+
+cv::Vec3f SceneRenderer::background_at(int x, int y) const {
+  // Half-resolution pixel centres: x_half = (x + 0.5) / 2 - 0.5.
+  const float hx = std::max(0.0f, 0.5f * static_cast<float>(x) - 0.25f);
+  const float hy = std::max(0.0f, 0.5f * static_cast<float>(y) - 0.25f);
+  const int x0 = std::min(static_cast<int>(hx), background_half_.cols - 1);
+  const int y0 = std::min(static_cast<int>(hy), background_half_.rows - 1);
+  const int x1 = std::min(x0 + 1, background_half_.cols - 1), y1 = std::min(y0 + 1, background_half_.rows - 1);
+  const float fx = hx - static_cast<float>(x0), fy = hy - static_cast<float>(y0);
+  const auto* r0 = background_half_.ptr<cv::Vec3f>(y0);
+  const auto* r1 = background_half_.ptr<cv::Vec3f>(y1);
+  return (r0[x0] * (1 - fx) + r0[x1] * fx) * (1 - fy) + (r1[x0] * (1 - fx) + r1[x1] * fx) * fy;
 }
 
 void SceneRenderer::shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight,
@@ -43,32 +80,40 @@ void SceneRenderer::shade_rows(const Xf T_mesh_camera[3], float irradiance, floa
     depth[m] = rasters[m]->depth();
     ids[m] = rasters[m]->triangle_id();
   }
+  const auto inv_fx = static_cast<float>(1.0 / K_ideal_.fx), inv_fy = static_cast<float>(1.0 / K_ideal_.fy);
   for (int y = 0; y < K_ideal_.height; ++y) {
+    const float ray_y = static_cast<float>(y - K_ideal_.cy) * inv_fy;
     auto* acc = accum_.ptr<cv::Vec3f>(y);
     std::uint8_t* lab = labels_ideal_.ptr<std::uint8_t>(y);
     for (int x = 0; x < K_ideal_.width; ++x) {
       int best = -1;
       float z = 0.0f;
       for (int m = 0; m < 3; ++m) {
-        const float d = depth[m](x, y);
-        if (d > 0.0f && ids[m](x, y) >= 0 && (best < 0 || d < z)) {
+        // The background raster is half size (shade_background_half).
+        const int rx = m == 1 ? std::min(x >> 1, depth[1].width - 1) : x;
+        const int ry = m == 1 ? std::min(y >> 1, depth[1].height - 1) : y;
+        const float d = depth[m](rx, ry);
+        if (d > 0.0f && ids[m](rx, ry) >= 0 && (best < 0 || d < z)) {
           best = m;
           z = d;
         }
       }
       if (keep_labels) lab[x] = best < 0 ? kLabelNone : label_of[best];
       if (best < 0) continue;
-      const Vec3f c = shade_pixel(*meshes[best], T_mesh_camera[best], ids[best](x, y),
-                                  static_cast<float>(x), static_cast<float>(y), z, irradiance);
+      if (best == 1) {
+        acc[x] += background_at(x, y) * weight;
+        continue;
+      }
+      const Vec3f ray(static_cast<float>(x - K_ideal_.cx) * inv_fx, ray_y, 1.0f);
+      const Vec3f c = shade_pixel(*meshes[best], T_mesh_camera[best], ray, ids[best](x, y), z, irradiance);
       acc[x] += cv::Vec3f(c.x(), c.y(), c.z()) * weight;
     }
   }
 }
 
-Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, std::int32_t tri, float x, float y,
+Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, const Vec3f& ray, std::int32_t tri,
                                  float depth, float irradiance) const {
-  const Vec3f p_c((x - static_cast<float>(K_ideal_.cx)) / static_cast<float>(K_ideal_.fx) * depth,
-                  (y - static_cast<float>(K_ideal_.cy)) / static_cast<float>(K_ideal_.fy) * depth, depth);
+  const Vec3f p_c = ray * depth;
   const Vec3f Rp = T.R * p_c;
   const Vec3f p_m = Rp + T.t;
   // Barycentrics in the mesh frame (precomputed per triangle solve).
@@ -78,8 +123,10 @@ Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, std::int32_t 
   const float b2 = std::clamp(s[6] * w.x() + s[7] * w.y() + s[8] * w.z(), 0.0f, 1.0f - b1);
   const float b0 = 1.0f - b1 - b2;
   const std::int32_t* v = &sm.mesh->tri[3 * static_cast<std::size_t>(tri)];
-  const Vec3f n = (b0 * sm.normal[v[0]] + b1 * sm.normal[v[1]] + b2 * sm.normal[v[2]]).normalized();
-  const Vec3f albedo0 = b0 * sm.albedo[v[0]] + b1 * sm.albedo[v[1]] + b2 * sm.albedo[v[2]];
+  const ShadeMesh::VertexShade &s0 = sm.vertex[v[0]], &s1 = sm.vertex[v[1]], &s2 = sm.vertex[v[2]];
+  const Vec3f n_raw = b0 * s0.normal + b1 * s1.normal + b2 * s2.normal;
+  const float inv_n = 1.0f / std::sqrt(n_raw.squaredNorm());
+  const Vec3f albedo0 = b0 * s0.albedo + b1 * s1.albedo + b2 * s2.albedo;
   const Material& mat = materials_[static_cast<int>(sm.material[tri])];
   // Baked detail, bilinear over the triangle's texel grid.
   const int g = sm.texels;
@@ -93,11 +140,14 @@ Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, std::int32_t 
   const float speckle = (w00 * d[1] + w10 * d[3] + w01 * d2[1] + w11 * d2[3]) * (1.0f / 255.0f);
   const Vec3f albedo = Texture::apply_detail(mat, albedo0, vessel, speckle);
   // Light and eye at the camera centre: l = v = h (Blinn-Phong's half vector).
-  const float dist2 = p_c.squaredNorm();
-  const float ndl = std::max(0.0f, -n.dot(Rp) / std::sqrt(dist2));
-  float spec = ndl;
-  for (int k = 0; k < mat.shininess_log2; ++k) spec *= spec;
-  const float e = irradiance / dist2;
+  // One sqrt and one division per factor: this runs for every pixel.
+  const float inv_d = 1.0f / std::sqrt(p_c.squaredNorm());
+  const float ndl = std::max(0.0f, -n_raw.dot(Rp) * (inv_n * inv_d));
+  float powers[8];  // ndl^(2^k), branch-free
+  powers[0] = ndl;
+  for (int k = 1; k < 8; ++k) powers[k] = powers[k - 1] * powers[k - 1];
+  const float spec = powers[std::min(mat.shininess_log2, 7)];
+  const float e = irradiance * inv_d * inv_d;
   return albedo * (e * ndl + kAmbient) + Vec3f::Constant(e * mat.specular * spec);
 }
 
@@ -109,8 +159,6 @@ void SceneRenderer::finish(int frame, cv::Mat& rgb, cv::Mat& labels) {
   rgb.create(H, W, CV_8UC3);
   labels.create(H, W, CV_8U);
   Rng rng(mix_seed(settings_.seed, static_cast<std::uint64_t>(frame) + 1));
-  const float read2 = static_cast<float>(settings_.noise_read * settings_.noise_read);
-  const auto shot = static_cast<float>(settings_.noise_shot);
   const float lut_scale = static_cast<float>(gamma_lut_.size()) - 1.0f;
   for (int y = 0; y < H; ++y) {
     const auto* in = lin.ptr<cv::Vec3f>(y);
@@ -118,13 +166,18 @@ void SceneRenderer::finish(int frame, cv::Mat& rgb, cv::Mat& labels) {
     std::uint8_t* lab = labels.ptr<std::uint8_t>(y);
     // Each row reads the noise table from a random place.
     std::size_t g = rng.next_u64() % (gaussian_.size() - 3 * static_cast<std::size_t>(W));
+    const std::size_t row = static_cast<std::size_t>(y) * W;
+    if (distorted) {
+      const std::uint8_t* ideal = labels_ideal_.ptr<std::uint8_t>();
+      for (int x = 0; x < W; ++x) lab[x] = nearest_[row + x] >= 0 ? ideal[nearest_[row + x]] : kLabelNone;
+    } else {
+      std::copy_n(labels_ideal_.ptr<std::uint8_t>(y), W, lab);
+    }
     for (int x = 0; x < W; ++x) {
-      const std::size_t i = static_cast<std::size_t>(y) * W + x;
-      const std::int32_t src = nearest_[i];
-      lab[x] = distorted ? (src >= 0 ? labels_ideal_.ptr<std::uint8_t>()[src] : kLabelNone)
-                         : labels_ideal_.ptr<std::uint8_t>(y)[x];
+      const std::size_t i = row + x;
       const cv::Vec3f c = in[x] * gain_[i];
-      const float sigma = std::sqrt(read2 + shot * (c[0] + c[1] + c[2]) * (1.0f / 3.0f));
+      const float mean = std::min(1.0f, (c[0] + c[1] + c[2]) * (1.0f / 3.0f));
+      const float sigma = sigma_lut_[static_cast<std::size_t>(mean * 255.0f)];
       for (int k = 0; k < 3; ++k) {
         const float v = std::clamp(c[k] + sigma * gaussian_[g++], 0.0f, 1.0f);
         out[x][k] = gamma_lut_[static_cast<std::size_t>(v * lut_scale + 0.5f)];
