@@ -15,7 +15,7 @@ Material material(MaterialId id) {
       m.vessel_width = 0.05f;
       m.vessel_strength = 0.35f;
       m.speckle_strength = 0.07f;
-      m.specular = 0.7f;
+      m.specular = 0.5f;
       m.shininess_log2 = 7;
       break;
     case MaterialId::Fat:  // yellow lobulated omentum with red vessels
@@ -90,7 +90,9 @@ Texture::Detail Texture::detail_sample(const Material& m, const Vec3f& p) const 
     const float v1 = detail_.ridge(p.x() * f, p.y() * f, p.z() * f, m.vessel_width);
     const float v2 = detail_.ridge(p.x() * f * 2.3f + 7.7f, p.y() * f * 2.3f, p.z() * f * 2.3f,
                                    m.vessel_width * 0.8f);
-    d.vessel = std::min(1.0f, v1 + 0.6f * v2);
+    // Vessels run in patches, not as an even net of loops everywhere.
+    const float patch = noise_.gradient(p.x() * f * 0.35f + 2.7f, p.y() * f * 0.35f, p.z() * f * 0.35f);
+    d.vessel = std::min(1.0f, v1 + 0.6f * v2) * std::clamp(0.5f + 2.0f * patch, 0.0f, 1.0f);
   }
   const float s = 1.0f / m.speckle_mm;
   d.speckle = std::clamp(detail_.value(p.x() * s, p.y() * s, p.z() * s), 0.0f, 1.0f);

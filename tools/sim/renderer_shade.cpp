@@ -27,8 +27,20 @@ void SceneRenderer::render_subframe(const WorldState& state, float weight, bool 
   // Auto exposure, as a scope's camera control unit does: the gain follows
   // the distance to the organ (most of the way), so a close organ is not
   // blown out and a far one not black. Irradiance = scale / depth^2.
-  const double d_organ = (T_camera_world * (state.T_world_model * organ_centre_model_)).norm();
-  const double d_ref = 100.0 * std::pow(std::max(d_organ, 20.0) / 100.0, 0.85);
+  // The metered distance: mean depth of the organ pixels (every 8th pixel
+  // of every 8th row), or the organ centre's distance when none is seen.
+  double d_organ = (T_camera_world * (state.T_world_model * organ_centre_model_)).norm();
+  const ImageView<const float> od = organ_raster_.depth();
+  double sum = 0;
+  int n = 0;
+  for (int y = 0; y < od.height; y += 8)
+    for (int x = 0; x < od.width; x += 8)
+      if (od(x, y) > 0.0f) {
+        sum += static_cast<double>(od(x, y));
+        ++n;
+      }
+  if (n > 20) d_organ = sum / n;
+  const double d_ref = 90.0 * std::pow(std::max(d_organ, 20.0) / 90.0, 0.85);
   const auto irradiance = static_cast<float>(settings_.exposure * d_ref * d_ref);
   shade_background_half(T_mesh_camera[1], irradiance);
   shade_rows(T_mesh_camera, irradiance, weight, keep_labels);
