@@ -116,7 +116,7 @@ bool same_pose(const SE3& a, const SE3& b, double tol) {
          (a.translation() - b.translation()).cwiseAbs().maxCoeff() < tol;
 }
 
-void check_scenario(const char* name, int frames) {
+void check_scenario(const char* name, int frames, const std::filesystem::path& mesh = {}) {
   SimOptions o;
   o.scenario = parse_scenario(name).value();
   o.out_dir = st::test::scratch_dir(std::string("sim_") + name);
@@ -124,6 +124,7 @@ void check_scenario(const char* name, int frames) {
   o.width = 640;
   o.height = 360;
   o.seed = 4;
+  o.mesh_file = mesh;
   std::vector<cv::Mat> labels;
   const auto report = run_simulation(o, [&](int, const cv::Mat&, const cv::Mat& l) { labels.push_back(l.clone()); });
   REQUIRE_MESSAGE(report.ok(), (report.ok() ? std::string() : report.message()));
@@ -189,6 +190,10 @@ TEST_CASE("sim sequence: manipulation ground truth is exact (organ moves)" * doc
 }
 TEST_CASE("sim sequence: invivo ground truth is exact through distortion" * doctest::timeout(st::test::budget_s(30))) {
   check_scenario("invivo", 20);
+}
+
+TEST_CASE("sim sequence: the CT liver of shared/data as the organ (--mesh)" * doctest::timeout(st::test::budget_s(30))) {
+  check_scenario("orbit", 10, st::test::shared_data("liver/liver.ply"));
 }
 
 TEST_CASE("sim sequence: deterministic for a seed" * doctest::timeout(st::test::budget_s(30))) {

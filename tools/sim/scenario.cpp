@@ -59,6 +59,7 @@ Trajectory::Trajectory(ScenarioKind kind, const Scene& scene, int frames, std::u
       box_(scene.organ_box_world),
       T_world_model_rest_(scene.T_world_model_rest),
       tremor_(seed + 101) {
+  scale_ = std::clamp(box_.size().maxCoeff() / 150.0, 0.7, 2.0);
   Rng rng(mix_seed(seed, 77));
   azimuth0_ = rng.uniform(-M_PI, M_PI);
   phase_ = rng.uniform(0.0, 2.0 * M_PI);
@@ -82,7 +83,7 @@ Trajectory::View Trajectory::orbit_view(double u) const {
   const double w = 2.0 * M_PI * u;
   const double az = azimuth0_ + 100.0 * kDeg * u;
   const double el = (58.0 + 12.0 * std::sin(1.3 * w + phase_)) * kDeg;
-  const double dist = 128.0 + 28.0 * std::sin(0.9 * w + 1.0 + phase_);
+  const double dist = scale_ * (128.0 + 28.0 * std::sin(0.9 * w + 1.0 + phase_));
   const Vec3 target(15.0 * std::sin(w), 10.0 * std::cos(0.7 * w), 0.25 * box_.max.z());
   return {target + spherical(az, el, dist), target, 10.0 * kDeg * std::sin(0.8 * w + phase_)};
 }
@@ -118,7 +119,7 @@ Trajectory::View Trajectory::manipulation_view(double u) const {
   const double w = 2.0 * M_PI * u;
   const double az = azimuth0_ + 20.0 * kDeg * std::sin(w);
   const Vec3 target(0.1 * box_.size().x(), 0.0, 0.3 * box_.max.z());
-  return {target + spherical(az, 62.0 * kDeg, 115.0 + 8.0 * std::cos(w)), target,
+  return {target + spherical(az, 62.0 * kDeg, scale_ * (115.0 + 8.0 * std::cos(w))), target,
           5.0 * kDeg * std::sin(w)};
 }
 

@@ -59,6 +59,7 @@ class Trajectory {
   Vec3 grasp_model_;    // instrument contact point on the organ, model frame
   Vec3 hover_world_;    // where the instrument tip waits when not grasping
   Vec3 trocar_world_;   // the instrument's port in the abdominal wall
+  double scale_ = 1.0;  // organ size / 150 mm: bigger organs are viewed from farther
   double azimuth0_;
   double phase_;
   Noise3 tremor_;
