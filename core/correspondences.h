@@ -16,6 +16,11 @@ struct Correspondences {
   int count = 0;
 
   double info(int i) const { return information ? information[i] : 1.0; }
+  // Finite point and pixel, finite positive information: usable at all.
+  bool valid(int i) const {
+    const double w = info(i);
+    return p_model[i].allFinite() && px_ideal[i].allFinite() && std::isfinite(w) && w > 0;
+  }
 };
 
 // Information weight 1/sigma^2 of a keypoint detected at pyramid octave

@@ -55,16 +55,6 @@ inline void mirror_upper(Mat6* H) {
     for (int row = col + 1; row < 6; ++row) (*H)(row, col) = (*H)(col, row);
 }
 
-bool camera_is_valid(const Pinhole& K) {
-  return std::isfinite(K.fx) && std::isfinite(K.fy) && std::isfinite(K.cx) &&
-         std::isfinite(K.cy) && K.fx > 0 && K.fy > 0;
-}
-
-bool correspondence_is_valid(const Correspondences& c, int i) {
-  const double info = c.info(i);
-  return c.p_model[i].allFinite() && c.px_ideal[i].allFinite() && std::isfinite(info) && info > 0;
-}
-
 }  // namespace
 
 Status PoseSolver::configure(int max_correspondences, const Options& opt) {
@@ -88,7 +78,7 @@ Status PoseSolver::configure(int max_correspondences, const Options& opt) {
 int PoseSolver::count_usable(const Correspondences& c, const Pinhole& K, const SE3& T) {
   int in_front = 0;
   for (int i = 0; i < c.count; ++i) {
-    valid_[i] = correspondence_is_valid(c, i) ? 1 : 0;
+    valid_[i] = c.valid(i) ? 1 : 0;
     Vec2 r;
     inlier_[i] = valid_[i] && reprojection_residual(K, T, c.p_model[i], c.px_ideal[i],
                                                     options_.min_depth_mm, &r, nullptr);
@@ -233,7 +223,7 @@ bool PoseSolver::solve(const Correspondences& c, const Pinhole& K, SE3* T_camera
   if (c.count > capacity()) return (s.status = PoseStatus::kTooManyPoints), false;
   if (c.count < options_.min_inliers || !c.p_model || !c.px_ideal)
     return (s.status = PoseStatus::kTooFewPoints), false;
-  if (!T_camera_model || !T_camera_model->all_finite() || !camera_is_valid(K))
+  if (!T_camera_model || !T_camera_model->all_finite() || !pinhole_is_usable(K))
     return (s.status = PoseStatus::kNonFiniteInput), false;
   last_count_ = c.count;
   const int in_front = count_usable(c, K, *T_camera_model);

@@ -13,6 +13,12 @@ namespace st {
 
 using Mat26 = Eigen::Matrix<double, 2, 6>;
 
+// A pinhole the residual can use: finite, positive focal lengths.
+inline bool pinhole_is_usable(const Pinhole& K) {
+  return std::isfinite(K.fx) && std::isfinite(K.fy) && std::isfinite(K.cx) &&
+         std::isfinite(K.cy) && K.fx > 0 && K.fy > 0;
+}
+
 // r = project(T_camera_model * p_model) - px_observed, in pixels. Returns
 // false (and leaves r, J untouched) when the point is not in front of the
 // camera: depth below min_depth_mm or not finite.

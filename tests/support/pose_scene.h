@@ -51,6 +51,13 @@ struct PoseScene {
 // into the image (self-occlusion is ignored: pose maths does not need it).
 PoseScene make_liver_scene(const PoseSceneOptions& opt);
 
+// Distance between the camera centres of two poses T_camera_model, mm:
+// independent of where the model frame's origin lies (the CT frame's origin
+// is far from the liver, so pose_delta's translation mixes in rotation error).
+inline double camera_centre_distance_mm(const SE3& a, const SE3& b) {
+  return (a.inverse().translation() - b.inverse().translation()).norm();
+}
+
 // A pose perturbed by rotation_deg about a random axis and translation_mm
 // in a random direction (a constant-velocity prediction error).
 SE3 perturb(const SE3& T, double rotation_deg, double translation_mm, std::uint32_t seed);
