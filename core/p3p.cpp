@@ -16,7 +16,7 @@
 #include "core/p3p.h"
 
 #include <Eigen/Eigenvalues>
-#include <Eigen/LU>
+#include <Eigen/LU>  // closed-form 3x3 inverse
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
@@ -94,23 +94,28 @@ bool degenerate_member(const Mat3& D1, const Mat3& D2, Eigen::SelfAdjointEigenSo
   } else {
     n = solve_cubic_real(c[1] / c[0], c[2] / c[0], c[3] / c[0], roots);
   }
-  double best_score = 1e-12;
-  bool found = false;
+  // A singular D0 has eigenvalues {0, e+, e-}: e+ e- is the sum m of its
+  // principal 2x2 minors and e+ + e- its trace. It splits into two real
+  // planes iff m < 0; the score -m / (e+^2 + e-^2) prefers well-separated
+  // planes. One eigen-decomposition, for the chosen root only.
+  double best_score = 1e-12, best_root = 0;
   for (int k = 0; k < n; ++k) {
     if (!std::isfinite(roots[k])) continue;
     const Mat3 D0 = in_g ? Mat3(D1 + roots[k] * D2) : Mat3(roots[k] * D1 + D2);
-    Eigen::SelfAdjointEigenSolver<Mat3> eig(D0);
-    if (eig.info() != Eigen::Success) continue;
-    const Vec3 e = eig.eigenvalues();  // ascending
-    const double scale = std::max(-e[0], e[2]);
-    const double score = scale > 0 ? std::min(-e[0], e[2]) / scale : 0.0;
+    const double m = D0(0, 0) * D0(1, 1) - D0(0, 1) * D0(1, 0) + D0(0, 0) * D0(2, 2) -
+                     D0(0, 2) * D0(2, 0) + D0(1, 1) * D0(2, 2) - D0(1, 2) * D0(2, 1);
+    const double tr = D0.trace();
+    const double score = -m / (tr * tr - 2.0 * m + 1e-300);
     if (score > best_score) {
       best_score = score;
-      *best = eig;
-      found = true;
+      best_root = roots[k];
     }
   }
-  return found;
+  if (best_score <= 1e-12) return false;
+  best->compute(in_g ? Mat3(D1 + best_root * D2) : Mat3(best_root * D1 + D2));
+  if (best->info() != Eigen::Success) return false;
+  const Vec3 e = best->eigenvalues();  // ascending: e- <= ~0 <= e+
+  return e[0] < 0 && e[2] > 0;
 }
 
 // Residuals F_ij = L^T M_ij L - a_ij and their Jacobian.
@@ -130,9 +135,9 @@ Vec3 refine_depths(const Problem& P, Vec3 L) {
   double err = equations(P, L, &J).squaredNorm();
   for (int it = 0; it < 5 && err > 1e-30; ++it) {
     const Vec3 F = equations(P, L, &J);
-    const Eigen::FullPivLU<Mat3> lu(J);
-    if (!lu.isInvertible()) break;
-    const Vec3 L_new = L - lu.solve(F);
+    const double det = J.determinant();
+    if (!(std::abs(det) > 1e-14 * std::pow(J.norm(), 3))) break;
+    const Vec3 L_new = L - J.inverse() * F;
     const double err_new = equations(P, L_new, nullptr).squaredNorm();
     if (!(err_new < err)) break;
     L = L_new;

@@ -107,20 +107,6 @@ bool PoseSolver::linearize(const Correspondences& c, const Pinhole& K, const SE3
   return std::isfinite(out->cost) && out->H.allFinite() && out->g.allFinite();
 }
 
-// Cost at T over the active set; +inf when an active point is not in front
-// of the camera (such a step is rejected, which shrinks the trust region).
-double PoseSolver::evaluate_cost(const Correspondences& c, const Pinhole& K, const SE3& T) const {
-  double cost = 0, weight;
-  Vec2 r;
-  for (int i = 0; i < c.count; ++i) {
-    if (!inlier_[i]) continue;
-    if (!reprojection_residual(K, T, c.p_model[i], c.px_ideal[i], options_.min_depth_mm, &r, nullptr))
-      return std::numeric_limits<double>::infinity();
-    cost += 0.5 * huber(c.info(i) * r.squaredNorm(), options_.huber_delta, &weight);
-  }
-  return std::isfinite(cost) ? cost : std::numeric_limits<double>::infinity();
-}
-
 // One LM solve over the current active set (tiny_solver's loop: Marquardt
 // damping of the clamped diagonal, Nielsen's update of the damping).
 PoseSolver::RoundEnd PoseSolver::run_round(const Correspondences& c, const Pinhole& K, SE3* T,
@@ -139,14 +125,18 @@ PoseSolver::RoundEnd PoseSolver::run_round(const Correspondences& c, const Pinho
     if (ldlt.info() != Eigen::Success || !delta.allFinite()) return RoundEnd::kFailed;
     if (delta.norm() < options_.step_tolerance * (1.0 + T->translation().norm()))
       return RoundEnd::kConverged;
+    // The trial is linearised right away: steps are rarely rejected, and an
+    // accepted step then needs no second pass over the points. A trial
+    // that puts an active point behind the camera counts as infinite cost.
     const SE3 T_trial = SE3::exp(delta) * *T;
-    const double cost_trial = evaluate_cost(c, K, T_trial);
+    const bool trial_ok = linearize(c, K, T_trial, &lin_trial_);
+    const double cost_trial = trial_ok ? lin_trial_.cost : std::numeric_limits<double>::infinity();
     const double model_decrease = -(delta.dot(lin_.g) + 0.5 * delta.dot(lin_.H * delta));
     const double actual_decrease = lin_.cost - cost_trial;
     const double ratio = actual_decrease / model_decrease;
-    if (std::isfinite(cost_trial) && model_decrease > 0 && ratio > 0) {
+    if (trial_ok && model_decrease > 0 && ratio > 0) {
       *T = T_trial;
-      if (!linearize(c, K, *T, &lin_)) return RoundEnd::kFailed;
+      lin_ = lin_trial_;
       s->final_cost = lin_.cost;
       if (actual_decrease <= options_.function_tolerance * (lin_.cost + actual_decrease))
         return RoundEnd::kConverged;
@@ -154,8 +144,7 @@ PoseSolver::RoundEnd PoseSolver::run_round(const Correspondences& c, const Pinho
       u *= std::max(1.0 / 3.0, 1.0 - t * t * t);
       v = 2.0;
     } else {
-      if (std::isfinite(cost_trial) &&
-          std::abs(actual_decrease) <= options_.function_tolerance * lin_.cost)
+      if (trial_ok && std::abs(actual_decrease) <= options_.function_tolerance * lin_.cost)
         return RoundEnd::kConverged;
       u *= v;
       v *= 2.0;

@@ -114,7 +114,6 @@ class PoseSolver {
 
   int count_usable(const Correspondences& c, const Pinhole& K, const SE3& T);
   bool linearize(const Correspondences& c, const Pinhole& K, const SE3& T, Linearization* out) const;
-  double evaluate_cost(const Correspondences& c, const Pinhole& K, const SE3& T) const;
   RoundEnd run_round(const Correspondences& c, const Pinhole& K, SE3* T, Summary* s);
   int classify(const Correspondences& c, const Pinhole& K, const SE3& T, bool* changed);
   void fill_quality(const Correspondences& c, const Pinhole& K, const SE3& T, Summary* s) const;
@@ -125,7 +124,7 @@ class PoseSolver {
   int last_count_ = 0;
   bool configured_ = false;
   // Workspace reused across iterations (tiny_solver style).
-  Linearization lin_{};
+  Linearization lin_{}, lin_trial_{};
 };
 
 }  // namespace st
