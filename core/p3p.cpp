@@ -52,8 +52,8 @@ int solve_cubic_real(double a, double b, double c, double roots[3]) {
 namespace {
 
 struct Problem {
-  Vec3 y[3];       // unit bearings
-  Vec3 x[3];       // model points, scaled so that max a_ij = 1
+  Vec3 y[3];  // unit bearings
+  Vec3 x[3];  // model points, scaled so that max a_ij = 1
   double b12, b13, b23, a12, a13, a23;
   Mat3 M12, M13, M23;
   Mat3 X_inverse;  // of [x1-x2, x1-x3, (x1-x2) x (x1-x3)]
@@ -176,9 +176,9 @@ bool set_up(const std::array<Vec3, 3>& bearing, const std::array<Vec3, 3>& p_mod
   }
   for (int i = 0; i < 3; ++i)
     if (P->y[i].cross(P->y[(i + 1) % 3]).squaredNorm() < 1e-20) return false;  // parallel rays
-  const double a_max = std::max({(p_model[0] - p_model[1]).squaredNorm(),
-                                 (p_model[0] - p_model[2]).squaredNorm(),
-                                 (p_model[1] - p_model[2]).squaredNorm()});
+  const double a_max =
+      std::max({(p_model[0] - p_model[1]).squaredNorm(), (p_model[0] - p_model[2]).squaredNorm(),
+                (p_model[1] - p_model[2]).squaredNorm()});
   if (!(a_max > 0) || !std::isfinite(a_max)) return false;
   *scale = std::sqrt(a_max);
   for (int i = 0; i < 3; ++i) P->x[i] = p_model[i] / *scale;

@@ -67,8 +67,8 @@ double centre_error_mm(const SE3& a, const SE3& b) {
 }
 
 // Pose LM from a constant-velocity-like prediction error (2 deg, 5 mm).
-Row bench_lm(const Options& opt, int inliers, double outlier_ratio, const PoseSolverOptions& po = {},
-             const std::string& label = "") {
+Row bench_lm(const Options& opt, int inliers, double outlier_ratio,
+             const PoseSolverOptions& po = {}, const std::string& label = "") {
   const int n = static_cast<int>(std::lround(inliers / (1.0 - outlier_ratio)));
   std::vector<Scene> scenes;
   for (std::uint32_t k = 0; k < 10; ++k) scenes.push_back(make_scene(n, outlier_ratio, 100 + k));
@@ -96,7 +96,8 @@ Row bench_lm(const Options& opt, int inliers, double outlier_ratio, const PoseSo
     err.push_back(centre_error_mm(T, sc.T_camera_model));
   }
   char note[160];
-  std::snprintf(note, sizeof note, "mean LM iterations %.1f, rounds %.2f; median camera-centre error %.3f mm",
+  std::snprintf(note, sizeof note,
+                "mean LM iterations %.1f, rounds %.2f; median camera-centre error %.3f mm",
                 iters / iterations, rounds / iterations, median(err));
   row.note = note;
   return row;
@@ -183,7 +184,7 @@ int run(const Options& opt) {
 
 }  // namespace
 
-SCOPETRACK_BENCH_STAGE("pose", "pose LM (300 / 1200 inliers + 20% outliers), PnP RANSAC (500, 50% out), P3P",
-                       run);
+SCOPETRACK_BENCH_STAGE(
+    "pose", "pose LM (300 / 1200 inliers + 20% outliers), PnP RANSAC (500, 50% out), P3P", run);
 
 }  // namespace st::bench
