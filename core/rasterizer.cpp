@@ -127,6 +127,8 @@ Status MeshRasterizer::configure(const Mesh& mesh, const RasterConfig& config) {
   depth_buf_.assign(pixels + kBufferPad, 0.0f);
   id_buf_.assign(pixels + kBufferPad, -1);
   mask_buf_.assign(pixels + kBufferPad, 0);
+  dirty_x0_.assign(raster_height_, raster_width_);
+  dirty_x1_.assign(raster_height_, -1);
   visible_bits_.assign((tri_.size() / 3 + 63) / 64, 0);
   morph_rows_.assign(pixels, 0);
   morph_counts_.assign(raster_width_, 0);
@@ -137,10 +139,22 @@ Status MeshRasterizer::configure(const Mesh& mesh, const RasterConfig& config) {
   return Status::Ok();
 }
 
+bool MeshRasterizer::simd_available() { return raster::simd_enabled(); }
+
+// Only what the last render wrote: with the organ in view this is about the
+// covered area rather than the whole image.
 void MeshRasterizer::clear_buffers() {
-  std::fill(depth_buf_.begin(), depth_buf_.end(), 0.0f);
-  std::fill(id_buf_.begin(), id_buf_.end(), -1);
-  std::fill(mask_buf_.begin(), mask_buf_.end(), std::uint8_t{0});
+  for (int y = 0; y < raster_height_; ++y) {
+    const int x0 = dirty_x0_[y], x1 = dirty_x1_[y];
+    if (x0 > x1) continue;
+    const std::size_t a = static_cast<std::size_t>(y) * raster_width_ + x0;
+    const std::size_t n = static_cast<std::size_t>(x1 - x0 + 1);
+    std::fill_n(depth_buf_.begin() + a, n, 0.0f);
+    std::fill_n(id_buf_.begin() + a, n, -1);
+    std::fill_n(mask_buf_.begin() + a, n, std::uint8_t{0});
+    dirty_x0_[y] = raster_width_;
+    dirty_x1_[y] = -1;
+  }
 }
 
 raster::Target MeshRasterizer::target() {
@@ -152,6 +166,8 @@ raster::Target MeshRasterizer::target() {
   t.height = raster_height_;
   t.stride = raster_width_;
   t.use_simd = config_.use_simd;
+  t.dirty_x0 = dirty_x0_.data();
+  t.dirty_x1 = dirty_x1_.data();
   return t;
 }
 

@@ -53,6 +53,8 @@ class MeshRasterizer {
   // Only K_full's intrinsics are used; the raster size comes from configure().
   void render(const SE3& T_camera_model, const Pinhole& K_full);
   const RasterStats& stats() const { return stats_; }
+  // True if this build runs the SIMD span kernel (config.use_simd permitting).
+  static bool simd_available();
 
   const RasterConfig& config() const { return config_; }
   // The pinhole of the raster (K_full scaled by 1/downscale).
@@ -115,6 +117,8 @@ class MeshRasterizer {
   std::vector<float> depth_buf_;
   std::vector<std::int32_t> id_buf_;
   std::vector<std::uint8_t> mask_buf_;
+  // Per raster row, the columns the last render wrote (cleared next time).
+  std::vector<std::int32_t> dirty_x0_, dirty_x1_;
   // Scratch for the const helpers (sized at configure; single-threaded use).
   mutable std::vector<std::uint64_t> visible_bits_;
   mutable std::vector<std::uint8_t> morph_rows_;
