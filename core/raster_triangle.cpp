@@ -17,9 +17,8 @@ inline std::int64_t ceil_px(std::int64_t v) { return -((-v) >> kSubpixelBits); }
 struct EdgeWalk {
   std::int64_t q, r, m, qd, rd;
 
-  void init(std::int64_t n0, std::int64_t dn, std::int64_t m_in) {
+  void init(std::int64_t n0, std::int64_t dn, std::int64_t m_in, double inv_m) {
     m = m_in;
-    const double inv_m = 1.0 / static_cast<double>(m);
     q = exact_ceil_div(n0, m, inv_m, &r);
     std::int64_t cr;
     const std::int64_t cq = exact_ceil_div(dn, m, inv_m, &cr);
@@ -172,6 +171,16 @@ Edges setup_edges(const FixedTriangle& t, int width, int height) {
   e.y_first = std::max<std::int64_t>(0, ceil_px(ymin));
   e.y_last = std::min<std::int64_t>(height - 1, floor_px(ymax));
   int n_lower = 0, n_upper = 0;
+  // 1/|dy| of the three edges from one division (an estimate is enough: the
+  // edge walkers correct it exactly). Horizontal edges count as 1.
+  double ady[3];
+  for (int i = 0; i < 3; ++i) {
+    const std::int64_t dy = t.y[i == 2 ? 0 : i + 1] - t.y[i];
+    ady[i] = dy == 0 ? 1.0 : static_cast<double>(dy < 0 ? -dy : dy);
+  }
+  const double inv_all = 1.0 / (ady[0] * ady[1] * ady[2] * static_cast<double>(S));
+  const double inv_m[3] = {ady[1] * ady[2] * inv_all, ady[0] * ady[2] * inv_all,
+                           ady[0] * ady[1] * inv_all};
   for (int i = 0; i < 3; ++i) {
     const int j = i == 2 ? 0 : i + 1;
     const std::int64_t dx = t.x[j] - t.x[i], dy = t.y[j] - t.y[i];
@@ -188,7 +197,7 @@ Edges setup_edges(const FixedTriangle& t, int width, int height) {
     const std::int64_t bias = top_left ? 0 : -1;
     const std::int64_t n0 = -(dx * (e.y_first * S - t.y[i]) + dy * t.x[i] + bias);
     EdgeWalk& w = dy < 0 ? e.lower[n_lower++] : e.upper[n_upper++];
-    w.init(n0, dx * S, (dy < 0 ? -dy : dy) * S);
+    w.init(n0, dx * S, (dy < 0 ? -dy : dy) * S, inv_m[i]);
   }
   if (n_lower < 2) e.lower[1].init_inert(0);                   // x >= 0 anyway
   if (n_upper < 2) e.upper[1].init_inert(-(width - 1));        // x <= width - 1 anyway

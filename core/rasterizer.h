@@ -90,6 +90,7 @@ class MeshRasterizer {
   static constexpr double kSameSurfaceRelDepth = 0.02;
 
  private:
+  void order_for_locality(const Mesh& mesh);
   void clear_buffers();
   raster::Target target();
   void transform_vertices();
@@ -107,7 +108,8 @@ class MeshRasterizer {
 
   // The mesh, copied at configure().
   std::vector<float> model_x_, model_y_, model_z_;
-  std::vector<std::int32_t> tri_;
+  std::vector<std::int32_t> tri_;     // in draw order (see order_for_locality)
+  std::vector<std::int32_t> tri_id_;  // draw order -> the mesh's triangle id
   // Per render, per vertex: camera frame (mm), frustum outcode, snapped
   // pixel position (1/4096 px; valid where the outcode has no clip bit).
   std::vector<double> cam_x_, cam_y_, cam_z_;
