@@ -14,15 +14,24 @@ namespace st {
 
 const char* to_string(PoseStatus s) {
   switch (s) {
-    case PoseStatus::kConverged: return "converged";
-    case PoseStatus::kNotConverged: return "not converged: last round hit max_iterations";
-    case PoseStatus::kNotConfigured: return "pose solver not configured";
-    case PoseStatus::kTooManyPoints: return "more correspondences than the configured capacity";
-    case PoseStatus::kTooFewPoints: return "too few finite correspondences with positive information";
-    case PoseStatus::kNonFiniteInput: return "initial pose or camera not finite (or fx, fy <= 0)";
-    case PoseStatus::kPointsBehindCamera: return "too few points in front of the camera at the initial pose";
-    case PoseStatus::kTooFewInliers: return "too few chi2 inliers after outlier rejection";
-    case PoseStatus::kNumericalFailure: return "normal equations not solvable or non-finite values";
+    case PoseStatus::kConverged:
+      return "converged";
+    case PoseStatus::kNotConverged:
+      return "not converged: last round hit max_iterations";
+    case PoseStatus::kNotConfigured:
+      return "pose solver not configured";
+    case PoseStatus::kTooManyPoints:
+      return "more correspondences than the configured capacity";
+    case PoseStatus::kTooFewPoints:
+      return "too few finite correspondences with positive information";
+    case PoseStatus::kNonFiniteInput:
+      return "initial pose or camera not finite (or fx, fy <= 0)";
+    case PoseStatus::kPointsBehindCamera:
+      return "too few points in front of the camera at the initial pose";
+    case PoseStatus::kTooFewInliers:
+      return "too few chi2 inliers after outlier rejection";
+    case PoseStatus::kNumericalFailure:
+      return "normal equations not solvable or non-finite values";
   }
   return "unknown pose status";
 }
@@ -161,8 +170,8 @@ int PoseSolver::classify(const Correspondences& c, const Pinhole& K, const SE3& 
   Vec2 r;
   for (int i = 0; i < c.count; ++i) {
     std::uint8_t in = 0;
-    if (valid_[i] &&
-        reprojection_residual(K, T, c.p_model[i], c.px_ideal[i], options_.min_depth_mm, &r, nullptr))
+    if (valid_[i] && reprojection_residual(K, T, c.p_model[i], c.px_ideal[i], options_.min_depth_mm,
+                                           &r, nullptr))
       in = c.info(i) * r.squaredNorm() < options_.chi2_threshold ? 1 : 0;
     *changed |= in != inlier_[i];
     inlier_[i] = in;
@@ -188,6 +197,11 @@ void PoseSolver::fill_quality(const Correspondences& c, const Pinhole& K, const 
   mirror_upper(&H);
   s->hessian = H;
   s->rms_reprojection_px = s->num_inliers > 0 ? std::sqrt(sum_r2 / s->num_inliers) : -1.0;
+  // Unobservable directions (degenerate geometry) show as a near-zero
+  // eigenvalue; the covariance is then not a quality measure.
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(H, Eigen::EigenvaluesOnly);
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues()[0] > 1e-10 * eig.eigenvalues()[5]))
+    return;
   const Eigen::LLT<Mat6> llt(H);
   if (llt.info() != Eigen::Success) return;
   s->covariance = llt.solve(Mat6::Identity());
