@@ -68,6 +68,7 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
     return err("max_rms_px, max_jump_deg and max_jump_mm must be positive");
   if (!(c.search_radius_px > 0.f) || !(c.wide_radius_px >= c.search_radius_px) || !(c.refine_radius_px > 0.f))
     return err("search radii must be positive and wide_radius_px >= search_radius_px");
+  if (c.max_hamming < 1 || c.max_hamming > 256) return err("max_hamming outside [1, 256]");
   if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
       c.min_spread_cells < 0 || c.min_spread_cells > 16)
     return err("relocalisation settings out of range");
@@ -99,7 +100,9 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   oc.scale_factor = config.scale_factor;
   oc.organ_margin_px = config.mask_margin_px;
   if (Status s = orb_.configure(oc, config.width, config.height); !s.ok()) return make_error("tracker: ORB: " + s.message());
-  if (Status s = matcher_.configure(MatchConfig{}); !s.ok()) return make_error("tracker: matcher: " + s.message());
+  MatchConfig mc;
+  mc.max_distance = config.max_hamming;
+  if (Status s = matcher_.configure(mc); !s.ok()) return make_error("tracker: matcher: " + s.message());
   if (Status s = grid_.configure(config.width, config.height); !s.ok()) return make_error("tracker: grid: " + s.message());
   if (Status s = solver_.configure(kMaxKeypoints); !s.ok()) return make_error("tracker: pose: " + s.message());
   PnpRansacOptions ro;

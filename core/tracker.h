@@ -51,12 +51,14 @@ struct TrackerConfig {
   // Honest state: below any of these the frame is lost.
   int min_inliers = 30;
   double min_inlier_ratio = 0.35;  // inliers / matched correspondences
-  double max_rms_px = 2.5;         // inlier reprojection RMS, ideal pixels
+  double max_rms_px = 2.5;         // inlier reprojection RMS, ideal pixels, each residual scaled
+                                   // by its octave's sigma (1.2^octave): level-0 pixels
   double min_mask_agreement = 0.9; // share of inliers inside the organ rendered at the final pose
   // Search by projection (full-resolution pixels, scaled by the predicted octave's scale).
   float search_radius_px = 15.f;   // around the constant-velocity prediction
   float wide_radius_px = 45.f;     // second pass when the first gives too few matches
   float refine_radius_px = 5.f;    // local-map search again at the first solved pose
+  int max_hamming = 100;           // descriptor distance limit of a match (of 256 bits)
   // Implausible motion: a pose this far from the prediction is lost (generous on purpose).
   double max_jump_deg = 25.0;
   double max_jump_mm = 40.0;       // camera centre displacement
@@ -82,7 +84,8 @@ struct TrackResult {
   int matches = 0;                // correspondences given to the pose solver
   int inliers = 0;
   double inlier_ratio = 0;
-  double rms_px = 0;
+  double rms_px = 0;              // unweighted inlier RMS, ideal pixels
+  double whitened_rms_px = 0;     // octave-normalised inlier RMS (what max_rms_px gates)
   double mask_agreement = 0;
   bool keyframe = false;          // a keyframe was inserted this frame
   int map_points = 0, keyframes = 0;

@@ -37,6 +37,7 @@ struct PoseEstimate {
   SE3 T_camera_model;
   int matches = 0, inliers = 0;
   double rms_px = 0, mask_agreement = 0;
+  double whitened_rms = 0;  // sqrt(mean(info * |r|^2)) over the inliers: level-0 pixels
   int spread_cells = 0;
   double mean_depth_mm = 100.0;  // of the inliers at the final pose
 };

@@ -22,6 +22,7 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   const QualityGates strict = gates(true);
   PoseEstimate e;
   bool found = track_from(T_last_, config_.wide_radius_px, &e, &r) && passes(e, strict);
+  PoseEstimate best = e;  // reported measures when nothing passes: the attempt with most inliers
   t = now_ms();
   for (int j = 0; !found && j < config_.reloc_keyframes_per_frame && r.features > 0; ++j) {
     int kf = -1;
@@ -36,12 +37,13 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
     if (kf < 0) break;
     e = PoseEstimate{};
     found = reloc_with_keyframe(kf, &e, &r) && passes(e, strict);
+    if (found || e.inliers > best.inliers) best = e;
   }
   lap(Stage::kReloc, &t, &r);
-  fill_measures(e, &r);
+  fill_measures(best, &r);
   if (found) {
     strict_frames_left_ = config_.strict_frames;
-    accept(e, frame_index, TrackState::kRelocalised, &r);
+    accept(best, frame_index, TrackState::kRelocalised, &r);
   } else {
     r.state = TrackState::kLost;
   }

@@ -149,14 +149,18 @@ bool TrackerImpl::track_from(const SE3& T_predicted, float first_radius_px, Pose
 // by more than ~3 px from the render's pose.
 void TrackerImpl::measure_final(PoseEstimate* e) {
   const SE3& T = e->T_camera_model;
-  double depth_sum = 0;
+  double depth_sum = 0, chi2_sum = 0;
   int depth_n = 0;
   for (int i = 0; i < corr_count_; ++i)
     if (corr_inlier_[static_cast<std::size_t>(i)]) {
-      depth_sum += (T * corr_p_[static_cast<std::size_t>(i)]).z();
+      const auto is = static_cast<std::size_t>(i);
+      const Vec3 p_camera = T * corr_p_[is];
+      depth_sum += p_camera.z();
+      chi2_sum += corr_info_[is] * (K_.project(p_camera) - corr_px_[is]).squaredNorm();
       ++depth_n;
     }
   e->mean_depth_mm = depth_n > 0 ? depth_sum / depth_n : 100.0;
+  e->whitened_rms = depth_n > 0 ? std::sqrt(chi2_sum / depth_n) : 0.0;
   const PoseDelta d = pose_delta(raster_pose_, T);
   const double shift_px = K_.fx * (d.angle_deg * M_PI / 180.0 +
                                    (camera_centre(raster_pose_) - camera_centre(T)).norm() / e->mean_depth_mm);
@@ -189,7 +193,6 @@ QualityGates TrackerImpl::gates(bool strict) const {
   g.min_mask_agreement = config_.min_mask_agreement;
   if (strict) {
     g.min_inliers = static_cast<int>(std::ceil(config_.min_inliers * config_.strict_inlier_factor));
-    g.min_inlier_ratio = std::min(1.0, config_.min_inlier_ratio + 0.1);
     g.max_rms_px = 0.8 * config_.max_rms_px;
     g.min_mask_agreement = std::max(config_.min_mask_agreement, 0.95);
     g.min_spread_cells = config_.min_spread_cells;
@@ -200,7 +203,7 @@ QualityGates TrackerImpl::gates(bool strict) const {
 bool TrackerImpl::passes(const PoseEstimate& e, const QualityGates& g) const {
   const double ratio = e.matches > 0 ? static_cast<double>(e.inliers) / e.matches : 0.0;
   return e.solved && e.T_camera_model.all_finite() && e.inliers >= g.min_inliers &&
-         ratio >= g.min_inlier_ratio && e.rms_px <= g.max_rms_px &&
+         ratio >= g.min_inlier_ratio && e.whitened_rms <= g.max_rms_px &&
          e.mask_agreement >= g.min_mask_agreement && e.spread_cells >= g.min_spread_cells;
 }
 
@@ -237,6 +240,7 @@ void TrackerImpl::fill_measures(const PoseEstimate& e, TrackResult* r) const {
   r->inliers = e.inliers;
   r->inlier_ratio = e.matches > 0 ? static_cast<double>(e.inliers) / e.matches : 0.0;
   r->rms_px = e.rms_px;
+  r->whitened_rms_px = e.whitened_rms;
   r->mask_agreement = e.mask_agreement;
 }
 

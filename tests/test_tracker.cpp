@@ -148,10 +148,13 @@ TEST_CASE("tracker: tracks a rendered orbit around the liver without losing it")
   int lost = 0, keyframes = 0;
   double worst_deg = 0, worst_mm = 0;
   std::vector<double> total_ms;
+  std::vector<std::vector<double>> stage_ms(static_cast<std::size_t>(Stage::kCount));
   for (std::size_t i = 0; i < seq.frames.size(); ++i) {
     const TrackResult r = t.step(seq.frames[i].view(), static_cast<int>(i));
     keyframes += r.keyframe ? 1 : 0;
     total_ms.push_back(r.times_ms[static_cast<int>(Stage::kTotal)]);
+    for (int st = 0; st < static_cast<int>(Stage::kCount); ++st)
+      stage_ms[static_cast<std::size_t>(st)].push_back(r.times_ms[static_cast<std::size_t>(st)]);
     if (!r.pose_valid) {
       ++lost;
       MESSAGE("frame " << i << " lost: matches " << r.matches << " inliers " << r.inliers << " rms " << r.rms_px
@@ -165,6 +168,11 @@ TEST_CASE("tracker: tracks a rendered orbit around the liver without losing it")
   MESSAGE("orbit: lost " << lost << "/" << seq.frames.size() << ", worst rotation " << worst_deg << " deg, worst centre "
                          << worst_mm << " mm, keyframes inserted " << keyframes << ", median step "
                          << total_ms[total_ms.size() / 2] << " ms");
+  for (int st = 0; st < static_cast<int>(Stage::kCount); ++st) {
+    auto& v = stage_ms[static_cast<std::size_t>(st)];
+    std::sort(v.begin(), v.end());
+    MESSAGE("stage " << std::string(to_string(static_cast<Stage>(st))) << " median " << v[v.size() / 2] << " ms");
+  }
   CHECK(lost == 0);
   CHECK(worst_deg < 1.0);
   CHECK(worst_mm < 3.0);
