@@ -122,6 +122,8 @@ class PoseSolver {
                  Linearization* out) const;
   RoundEnd run_round(const Correspondences& c, const Pinhole& K, SE3* T, Summary* s);
   int classify(const Correspondences& c, const Pinhole& K, const SE3& T, bool* changed);
+  bool update_linearization(const Correspondences& c, const Pinhole& K, const SE3& T, int i,
+                            double sign);
   void fill_quality(const Correspondences& c, const Pinhole& K, const SE3& T, Summary* s) const;
 
   Options options_;
@@ -131,6 +133,7 @@ class PoseSolver {
   bool configured_ = false;
   // Workspace reused across iterations (tiny_solver style).
   Linearization lin_{}, lin_trial_{};
+  bool lin_current_ = false;  // lin_ holds the linearisation at the current pose and active set
 };
 
 }  // namespace st

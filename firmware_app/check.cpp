@@ -2,12 +2,16 @@
 // prints what a user needs to know before relying on it. Exit status 0 only
 // when the sequence is usable: everything loads, the video has complete
 // frames of the calibrated size, and the mesh projects into frame 0 at
-// T_camera_model_init. Runs once at the command line (allocates freely).
+// T_camera_model_init (rendered: it covers part of the image). Runs once
+// at the command line (allocates freely).
+#include <algorithm>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <limits>
 
 #include "core/camera.h"
+#include "core/rasterizer.h"
 #include "firmware_app/cli.h"
 #include "hal/sequence_loader.h"
 #include "hal/y4m_reader.h"
@@ -138,6 +142,33 @@ VertexProjection project_vertices(const LoadedSequence& s) {
   return p;
 }
 
+// The mesh rendered at T_init (ideal pinhole: the rasteriser ignores lens
+// distortion, a good approximation for the covered fraction).
+struct Coverage {
+  double fraction = 0.0;
+  float near_mm = 0.0f, far_mm = 0.0f;
+};
+
+Result<Coverage> render_coverage(const LoadedSequence& s) {
+  MeshRasterizer raster;
+  RasterConfig rc;
+  rc.width = s.config.width;
+  rc.height = s.config.height;
+  if (Status st = raster.configure(s.mesh, rc); !st) return Error{st.message()};
+  raster.render(s.config.T_camera_model_init, s.config.K);
+  Coverage c;
+  c.fraction = static_cast<double>(raster.covered_pixels()) / (static_cast<double>(rc.width) * rc.height);
+  const ImageView<const float> depth = raster.depth();
+  c.near_mm = std::numeric_limits<float>::max();
+  for (int y = 0; y < depth.height; ++y)
+    for (int x = 0; x < depth.width; ++x)
+      if (depth(x, y) > 0.0f) {
+        c.near_mm = std::min(c.near_mm, depth(x, y));
+        c.far_mm = std::max(c.far_mm, depth(x, y));
+      }
+  return c;
+}
+
 void report_projection(const LoadedSequence& s, Report& r) {
   const VertexProjection p = project_vertices(s);
   const double n = s.mesh.vertex_count();
@@ -145,8 +176,14 @@ void report_projection(const LoadedSequence& s, Report& r) {
          p.centre_depth_mm, 100.0 * p.in_front / n, 100.0 * p.inside / n);
   if (p.in_front == 0)
     return r.error("frame 0", "the mesh is entirely behind the camera at T_camera_model_init (is it T_model_camera, or in metres?)");
-  if (p.inside == 0)
+  const Result<Coverage> c = render_coverage(s);
+  if (!c) return r.error("frame 0", "cannot render the mesh: %s", c.message().c_str());
+  if (c->fraction <= 0.0)
     return r.error("frame 0", "no part of the mesh projects into the image at T_camera_model_init");
+  r.line("frame 0", "the rendered mesh covers %.1f%% of the image, visible depth %.1f..%.1f mm",
+         100.0 * c->fraction, static_cast<double>(c->near_mm), static_cast<double>(c->far_mm));
+  if (c->fraction < 0.01)
+    r.warn("frame 0", "the organ covers under 1%% of frame 0: initialisation will find few points on it");
 }
 
 void report_groundtruth(const LoadedSequence& s, Report& r) {

@@ -42,6 +42,9 @@ TEST_CASE("check: a good sequence is usable and the report says what a user need
   CHECK(r.output.find("fx 60.00 fy 60.00") != std::string::npos);
   CHECK(r.output.find("field of view") != std::string::npos);
   CHECK(r.output.find("100.0% inside the image") != std::string::npos);
+  // The cube's front face (40 mm at z = 130 mm, f = 60 px) spans 18.5 px: 18 x 18
+  // pixel centres of 64 x 48 = 10.5%.
+  CHECK(r.output.find("covers 10.5% of the image, visible depth 130.0..130.0 mm") != std::string::npos);
   CHECK(r.output.find("5 poses") != std::string::npos);
   CHECK(r.output.find("2 markers, 2 project into frame 0") != std::string::npos);
   CHECK(r.output.find("USABLE (0 warnings)") != std::string::npos);
