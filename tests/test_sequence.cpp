@@ -93,8 +93,9 @@ TEST_CASE("sequence: bad sequence.yaml gives clear errors, never throws") {
   const Case cases[] = {
       {"", "empty"},
       {"%YAML:1.0\n---\nimage_width: [1, 2\n", "YAML"},                             // broken YAML
-      {"\x01\x02\x03 garbage {{{", "sequence.yaml"},
-      {"<?xml version=\"1.0\"?>\n<opencv_storage><x>1</x>", "sequence.yaml"},
+      {"\x01\x02\x03 garbage {{{", "control characters"},
+      {"<?xml version=\"1.0\"?>\n<opencv_storage><x>1</x>", "expected 'key: value'"},
+      {"{\"image_width\": 64}", "expected 'key: value'"},
       {"%YAML:1.0\n---\nfoo: 1\n", "image_width"},
       {with_replaced("image_width", "image_width: 0"), "image size"},
       {with_replaced("image_width", "image_width: 100000"), "image size"},
@@ -113,6 +114,10 @@ TEST_CASE("sequence: bad sequence.yaml gives clear errors, never throws") {
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, 0, 0, 1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1")), "not rigid"},
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0.01, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1")), "not rigid"},
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1")), "last row"},
+      // Found by fuzz_sequence_yaml: OpenCV 4.6's YAML reader never returns on these.
+      {"%YAML:1.0\n---x: 1\n-]--/y: 64\nz", "line 2"},
+      {std::string("%YAML:1.0\n---/im\xda" "age_width: AML:1.0\n-]--/image_width: 64\nimage_height: 48\na: [ 0., 0., "), "line 2"},
+      {"%YAML:1.0\n---\nimage_width: 64\n\x01\x02\n", "control characters"},
       // Found by fuzz_sequence_yaml: cv::Mat reading allocated rows x cols as written.
       {with_replaced("camera_matrix", "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: \xbb\n   dt: d\n   data: [ 60., 0., 31.5, 01, 60., 23.5, 0., 0., 1. ]"), "3x3"},
       {with_replaced("camera_matrix", "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 2000000000\n   dt: d\n   data: [ 1 ]"), "3x3"},
@@ -128,4 +133,31 @@ TEST_CASE("sequence: bad sequence.yaml gives clear errors, never throws") {
     INFO(r.message());
     CHECK(r.message().find(c.needle) != std::string::npos);
   }
+}
+
+TEST_CASE("sequence: a file in the shape of OpenCV's calibration sample output is accepted") {
+  // What opencv's calibration sample writes (extra keys, strings, matrices,
+  // an nd-matrix), with the sequence keys added.
+  cv::FileStorage fs(".yaml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+  fs << "calibration_time" << "Sat Nov 21 08:00:00 2026";
+  fs << "nr_of_frames" << 25 << "image_width" << 1920 << "image_height" << 1080;
+  fs << "board_width" << 9 << "board_height" << 6 << "square_size" << 25.0;
+  fs << "flags" << 0 << "fisheye_model" << 0;
+  fs << "camera_matrix" << (cv::Mat_<double>(3, 3) << 1400, 0, 959.5, 0, 1400, 539.5, 0, 0, 1);
+  fs << "distortion_coefficients" << (cv::Mat_<double>(5, 1) << -0.2, 0.05, 0, 0, 0);
+  fs << "avg_reprojection_error" << 0.31;
+  fs << "per_view_reprojection_errors" << cv::Mat(25, 1, CV_32F, cv::Scalar(0.3f));
+  const int sizes[3] = {2, 3, 2};
+  fs << "image_points" << cv::Mat(3, sizes, CV_32F, cv::Scalar(1.0f));
+  fs << "fps" << 30 << "video" << "video.y4m" << "mesh" << "liver.stl";
+  fs << "T_camera_model_init" << cv::Mat(cv::Mat::eye(4, 4, CV_64F));
+  const std::string text = fs.releaseAndGetString();
+  auto r = parse_sequence_yaml(text);
+  REQUIRE_MESSAGE(r.ok(), (r.ok() ? "" : r.message()));
+  CHECK(r->width == 1920);
+  CHECK(r->K.cx == 959.5);
+  CHECK(r->distortion.count == 5);
+  CHECK(r->distortion.k[0] == -0.2);
+  CHECK(r->fps == 30);
+  CHECK(r->mesh == "liver.stl");
 }

@@ -1,0 +1,126 @@
+// Tracker: for every frame, the scope pose in the organ's (model) frame, or
+// an honest `lost`. The paper's system on the rasteriser and the ORB
+// frontend: prior-shape initialisation from the mesh depth at frame 0,
+// pseudo-segmentation (features only inside the mesh projected at the
+// predicted pose), a bounded map with points from the mesh depth at each
+// keyframe, robust LM pose, relocalisation by P3P RANSAC when lost.
+//
+// Lifecycle: configure() (allocates every pool, once) -> start() -> step()
+// per frame (allocates nothing, throws nothing, logs nothing) -> stop().
+// Thread: the tracking thread. core/ has no clock: the caller injects one
+// (TrackerConfig::now_ns) for the per-stage timings.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "core/camera.h"
+#include "core/image.h"
+#include "core/mesh.h"
+#include "core/result.h"
+#include "core/se3.h"
+
+namespace st {
+
+enum class TrackState : std::uint8_t {
+  kInitialised,  // frame 0 (or a restart): pose from T_camera_model_init, map built from the mesh
+  kTracking,     // pose reported, passed every quality check
+  kRelocalised,  // pose recovered by relocalisation this frame (stricter checks passed)
+  kLost,         // no pose reported: the tracker is not sure
+};
+const char* to_string(TrackState s);
+
+// Stage timings of one step, milliseconds (0 where the stage did not run).
+enum class Stage : int { kPyramid, kRaster, kDetect, kDescribe, kMatch, kPose, kMap, kReloc, kTotal, kCount };
+const char* to_string(Stage s);
+using StageTimes = std::array<double, static_cast<int>(Stage::kCount)>;
+
+struct TrackerConfig {
+  int width = 0, height = 0;       // frame size = calibration size
+  // Features (see core/orb_extractor.h for their meaning).
+  int n_features = 1500;
+  int levels = 8;
+  float scale_factor = 1.2f;
+  // Pseudo-segmentation.
+  bool use_mask = true;            // false: --no-mask ablation (whole valid image)
+  int raster_downscale = 2;        // mask/depth raster at 1/2 resolution
+  int mask_margin_px = 12;         // organ mask dilation, full-resolution pixels
+  // Bounded map.
+  int max_keyframes = 48;          // <= kMaxKeyframes
+  int max_map_points = 12000;      // <= kMaxMapPoints
+  // Honest state: below any of these the frame is lost.
+  int min_inliers = 30;
+  double min_inlier_ratio = 0.35;  // inliers / matched correspondences
+  double max_rms_px = 2.5;         // inlier reprojection RMS, ideal pixels, each residual scaled
+                                   // by its octave's sigma (1.2^octave): level-0 pixels
+  double min_mask_agreement = 0.9; // share of inliers inside the organ rendered at the final pose
+  // Search by projection (full-resolution pixels, scaled by the predicted octave's scale).
+  float search_radius_px = 15.f;   // around the constant-velocity prediction
+  float wide_radius_px = 45.f;     // second pass when the first gives too few matches
+  float refine_radius_px = 5.f;    // local-map search again at the first solved pose
+  int max_hamming = 100;           // descriptor distance limit of a match (of 256 bits)
+  // Implausible motion: a pose this far from the prediction is lost (generous on purpose).
+  double max_jump_deg = 25.0;
+  double max_jump_mm = 40.0;       // camera centre displacement
+  // Keyframes: inserted when the tracked points fell below this share of the
+  // reference keyframe's, or the view turned / travelled beyond these.
+  double keyframe_tracked_ratio = 0.7;
+  double keyframe_angle_deg = 10.0;
+  double keyframe_distance_ratio = 0.1;  // camera travel / median inlier depth
+  // Relocalisation and the stricter gates after it.
+  int reloc_keyframes_per_frame = 2;    // brute-force budget per lost frame
+  int strict_frames = 5;                // frames after relocalisation under strict gates
+  double strict_inlier_factor = 1.5;    // min_inliers multiplier when strict
+  int min_spread_cells = 3;             // strict: inliers must occupy this many cells of a 4x4 grid
+  // Clock for stage timings (monotonic ns); nullptr: no timings.
+  std::int64_t (*now_ns)() = nullptr;
+};
+
+struct TrackResult {
+  TrackState state = TrackState::kLost;
+  bool pose_valid = false;        // true for kInitialised, kTracking, kRelocalised
+  SE3 T_camera_model;             // valid only when pose_valid
+  int features = 0;               // keypoints extracted this frame
+  int matches = 0;                // correspondences given to the pose solver
+  int inliers = 0;
+  double inlier_ratio = 0;
+  double rms_px = 0;              // unweighted inlier RMS, ideal pixels
+  double whitened_rms_px = 0;     // octave-normalised inlier RMS (what max_rms_px gates)
+  double mask_agreement = 0;
+  bool keyframe = false;          // a keyframe was inserted this frame
+  int map_points = 0, keyframes = 0;
+  StageTimes times_ms{};
+  double pose_jump_deg = 0, pose_jump_mm = 0;  // final pose vs the prediction (tracking)
+  int local_map = 0;              // map points projected into the predicted view
+};
+
+class TrackerImpl;
+
+class Tracker {
+ public:
+  Tracker();
+  ~Tracker();
+  Tracker(const Tracker&) = delete;
+  Tracker& operator=(const Tracker&) = delete;
+
+  // Validates the config against capacity.h and the camera, copies the mesh,
+  // sizes every pool and buffer. T_camera_model_init registers the mesh to
+  // the first frame given to step().
+  Status configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
+                   const SE3& T_camera_model_init);
+  void start();
+  // One frame: luma (Y plane, distorted image as captured, width x height).
+  // Allocates nothing.
+  TrackResult step(GrayView luma, int frame_index);
+  void stop();
+
+  // Diagnostics (tests, overlay; not for the hot path): copies the model
+  // points of up to capacity alive map points to p_model; returns how many
+  // were written. 0 before configure().
+  int map_points(Vec3* p_model, int capacity) const;
+
+ private:
+  TrackerImpl* impl_ = nullptr;  // allocated in configure()
+};
+
+}  // namespace st
