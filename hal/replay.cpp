@@ -168,12 +168,14 @@ Result<ReplayStats> run_replay(const LoadedSequence& sequence, FrameProcessor& p
   processor.stop();
   capture->join();
 
+  ReplayOptions summary_options = options;
+  processor.append_summary(&summary_options.summary_extra);
   ReplayStats& stats = loop->stats;
   stats.tracking_thread_allocations = static_cast<std::int64_t>(allocs);
   if (loop->read_error) stats.error = capture->error();
   if (Status s = writer->finish(); !s && stats.error.empty()) stats.error = s.message();
   fill_timing(*loop, wall_s, &stats);
-  if (Status s = write_file(options.out_dir / "summary.json", format_replay_summary(stats, options)); !s)
+  if (Status s = write_file(options.out_dir / "summary.json", format_replay_summary(stats, summary_options)); !s)
     return Error{s.message()};
   return stats;
 }

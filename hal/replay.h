@@ -34,6 +34,9 @@ class FrameProcessor {
   virtual void start() = 0;
   virtual TrackResult step(GrayView luma, int frame_index) = 0;
   virtual void stop() = 0;
+  // After stop(), on the calling thread: more numeric fields for
+  // summary.json (e.g. mean stage times). May allocate.
+  virtual void append_summary(std::vector<std::pair<std::string, double>>* fields) const { (void)fields; }
 };
 
 struct ReplayOptions {
