@@ -10,9 +10,9 @@
 namespace st {
 
 struct Correspondences {
-  const Vec3* p_model = nullptr;         // model-frame points, mm
-  const Vec2* px_ideal = nullptr;        // observed ideal (undistorted) pixels
-  const double* information = nullptr;   // 1/sigma^2 per observation (1/px^2); nullptr: all 1
+  const Vec3* p_model = nullptr;        // model-frame points, mm
+  const Vec2* px_ideal = nullptr;       // observed ideal (undistorted) pixels
+  const double* information = nullptr;  // 1/sigma^2 per observation (1/px^2); nullptr: all 1
   int count = 0;
 
   double info(int i) const { return information ? information[i] : 1.0; }

@@ -17,7 +17,6 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>  // closed-form 3x3 inverse
-#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 
@@ -53,10 +52,11 @@ int solve_cubic_real(double a, double b, double c, double roots[3]) {
 namespace {
 
 struct Problem {
-  Vec3 y[3];       // unit bearings
-  Vec3 x[3];       // model points, scaled so that max a_ij = 1
+  Vec3 y[3];  // unit bearings
+  Vec3 x[3];  // model points, scaled so that max a_ij = 1
   double b12, b13, b23, a12, a13, a23;
   Mat3 M12, M13, M23;
+  Mat3 X_inverse;  // of [x1-x2, x1-x3, (x1-x2) x (x1-x3)]
 };
 
 Mat3 pair_form(int i, int j, double b) {
@@ -146,18 +146,22 @@ Vec3 refine_depths(const Problem& P, Vec3 L) {
   return L;
 }
 
-// Rigid transform taking the model triangle onto the camera points (Kabsch).
+// Rigid transform taking the model triangle onto the camera points: with
+// X = [x1-x2, x1-x3, (x1-x2) x (x1-x3)] and Y the same of the camera points,
+// R = Y X^-1 exactly when the depths are exact (X is invertible for a
+// non-collinear triangle); the quaternion re-normalisation removes the
+// residual non-orthogonality of polished depths.
 bool align(const Problem& P, const Vec3& L, SE3* T) {
   Vec3 cam[3];
   for (int i = 0; i < 3; ++i) cam[i] = L[i] * P.y[i];
-  const Vec3 cm = (P.x[0] + P.x[1] + P.x[2]) / 3.0, cc = (cam[0] + cam[1] + cam[2]) / 3.0;
-  Mat3 H = Mat3::Zero();
-  for (int i = 0; i < 3; ++i) H += (cam[i] - cc) * (P.x[i] - cm).transpose();
-  const Eigen::JacobiSVD<Mat3> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Mat3 S = Mat3::Identity();
-  S(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  const Mat3 R = svd.matrixU() * S * svd.matrixV().transpose();
-  *T = SE3(R, cc - R * cm);
+  Mat3 Y;
+  Y.col(0) = cam[0] - cam[1];
+  Y.col(1) = cam[0] - cam[2];
+  Y.col(2) = Y.col(0).cross(Y.col(1));
+  const Mat3 R = Y * P.X_inverse;
+  if (!R.allFinite()) return false;
+  *T = SE3(Quat(R), Vec3::Zero());
+  T->translation() = cam[0] - T->rotation() * P.x[0];
   return T->all_finite();
 }
 
@@ -172,9 +176,9 @@ bool set_up(const std::array<Vec3, 3>& bearing, const std::array<Vec3, 3>& p_mod
   }
   for (int i = 0; i < 3; ++i)
     if (P->y[i].cross(P->y[(i + 1) % 3]).squaredNorm() < 1e-20) return false;  // parallel rays
-  const double a_max = std::max({(p_model[0] - p_model[1]).squaredNorm(),
-                                 (p_model[0] - p_model[2]).squaredNorm(),
-                                 (p_model[1] - p_model[2]).squaredNorm()});
+  const double a_max =
+      std::max({(p_model[0] - p_model[1]).squaredNorm(), (p_model[0] - p_model[2]).squaredNorm(),
+                (p_model[1] - p_model[2]).squaredNorm()});
   if (!(a_max > 0) || !std::isfinite(a_max)) return false;
   *scale = std::sqrt(a_max);
   for (int i = 0; i < 3; ++i) P->x[i] = p_model[i] / *scale;
@@ -183,6 +187,9 @@ bool set_up(const std::array<Vec3, 3>& bearing, const std::array<Vec3, 3>& p_mod
   P->a13 = d13.squaredNorm();
   P->a23 = d23.squaredNorm();
   if (d12.cross(d13).squaredNorm() <= 1e-12 * P->a12 * P->a13 + 1e-24) return false;  // collinear
+  Mat3 X;
+  X << d12, d13, d12.cross(d13);
+  P->X_inverse = X.inverse();
   P->b12 = -2.0 * P->y[0].dot(P->y[1]);
   P->b13 = -2.0 * P->y[0].dot(P->y[2]);
   P->b23 = -2.0 * P->y[1].dot(P->y[2]);

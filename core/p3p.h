@@ -4,7 +4,8 @@
 // degenerate member of their pencil (one cubic root), which splits into two
 // planes; each plane meets a second quadric in two rays, the depth follows
 // from the sum of the three equations, Gauss-Newton polishes the depths and
-// a 3-point Kabsch alignment gives the pose. Derivation in p3p.cpp.
+// the rotation follows in closed form from the two triangles (R = Y X^-1).
+// Derivation in p3p.cpp.
 //
 // Pure function, no allocation, no exceptions. Degenerate input (collinear
 // or coincident model points, parallel or non-finite bearings) gives 0

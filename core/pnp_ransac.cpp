@@ -14,12 +14,18 @@ namespace st {
 
 const char* to_string(PnpRansacStatus s) {
   switch (s) {
-    case PnpRansacStatus::kOk: return "ok";
-    case PnpRansacStatus::kNotConfigured: return "PnP RANSAC not configured";
-    case PnpRansacStatus::kTooManyPoints: return "more correspondences than the configured capacity";
-    case PnpRansacStatus::kTooFewPoints: return "too few valid correspondences for PnP RANSAC";
-    case PnpRansacStatus::kInvalidCamera: return "camera not finite or fx, fy <= 0";
-    case PnpRansacStatus::kNoConsensus: return "no pose hypothesis reached min_inliers";
+    case PnpRansacStatus::kOk:
+      return "ok";
+    case PnpRansacStatus::kNotConfigured:
+      return "PnP RANSAC not configured";
+    case PnpRansacStatus::kTooManyPoints:
+      return "more correspondences than the configured capacity";
+    case PnpRansacStatus::kTooFewPoints:
+      return "too few valid correspondences for PnP RANSAC";
+    case PnpRansacStatus::kInvalidCamera:
+      return "camera not finite or fx, fy <= 0";
+    case PnpRansacStatus::kNoConsensus:
+      return "no pose hypothesis reached min_inliers";
   }
   return "unknown PnP RANSAC status";
 }
@@ -55,9 +61,11 @@ Status PnpRansac::configure(int max_correspondences, const Options& opt) {
     return make_error("PnpRansac: max_correspondences " + std::to_string(max_correspondences) +
                       " outside [4, kMaxKeypoints=" + std::to_string(kMaxKeypoints) + "]");
   if (!(opt.inlier_threshold_px > 0) || !(opt.confidence > 0 && opt.confidence < 1) ||
-      opt.max_iterations < 1 || opt.min_iterations < 0 || opt.min_inliers < 4 || opt.refine_passes < 1)
-    return make_error("PnpRansac: need threshold > 0, confidence in (0, 1), max_iterations >= 1, "
-                      "min_inliers >= 4");
+      opt.max_iterations < 1 || opt.min_iterations < 0 || opt.min_inliers < 4 ||
+      opt.refine_passes < 1)
+    return make_error(
+        "PnpRansac: need threshold > 0, confidence in (0, 1), max_iterations >= 1, "
+        "min_inliers >= 4");
   if (Status st = solver_.configure(max_correspondences, opt.refine_options); !st.ok())
     return make_error("PnpRansac: refine options: " + st.message());
   options_ = opt;
@@ -89,7 +97,8 @@ int PnpRansac::prepare(const Correspondences& c, const Pinhole& K) {
 bool PnpRansac::hypothesis(const Correspondences& c, const Pinhole& K, const int sample[4],
                            SE3* T) const {
   const std::array<Vec3, 3> bearing{bearing_[sample[0]], bearing_[sample[1]], bearing_[sample[2]]};
-  const std::array<Vec3, 3> p_model{c.p_model[sample[0]], c.p_model[sample[1]], c.p_model[sample[2]]};
+  const std::array<Vec3, 3> p_model{c.p_model[sample[0]], c.p_model[sample[1]],
+                                    c.p_model[sample[2]]};
   P3PSolutions sol;
   if (solve_p3p(bearing, p_model, &sol) == 0) return false;
   const int check = sample[3];
@@ -118,7 +127,8 @@ int PnpRansac::score(const Correspondences& c, const Pinhole& K, const SE3& T, i
   for (int k = 0; k < num_valid_; ++k) {
     if (n + (num_valid_ - k) <= to_beat) break;
     const int i = valid_index_[k];
-    if (reprojection_residual(K, T, c.p_model[i], c.px_ideal[i], options_.min_depth_mm, &r, nullptr) &&
+    if (reprojection_residual(K, T, c.p_model[i], c.px_ideal[i], options_.min_depth_mm, &r,
+                              nullptr) &&
         c.info(i) * r.squaredNorm() < threshold2_)
       ++n;
   }
@@ -131,7 +141,8 @@ int PnpRansac::classify(const Correspondences& c, const Pinhole& K, const SE3& T
   Vec2 r;
   for (int k = 0; k < num_valid_; ++k) {
     const int i = valid_index_[k];
-    if (reprojection_residual(K, T, c.p_model[i], c.px_ideal[i], options_.min_depth_mm, &r, nullptr) &&
+    if (reprojection_residual(K, T, c.p_model[i], c.px_ideal[i], options_.min_depth_mm, &r,
+                              nullptr) &&
         c.info(i) * r.squaredNorm() < threshold2_) {
       inlier_[i] = 1;
       ++n;

@@ -37,27 +37,27 @@ const char* to_string(PnpRansacStatus s);
 
 struct PnpRansacOptions {
   double inlier_threshold_px = 2.447651936;  // at octave 0; sqrt(5.991), ORB-SLAM's test
-  double confidence = 0.99;   // adaptive stop: P(an all-inlier sample was drawn)
-  int max_iterations = 1000;  // hard bound on samples (each gives <= 4 hypotheses)
+  double confidence = 0.99;                  // adaptive stop: P(an all-inlier sample was drawn)
+  int max_iterations = 1000;                 // hard bound on samples (each gives <= 4 hypotheses)
   int min_iterations = 1;
-  int min_inliers = 12;       // below: kNoConsensus
+  int min_inliers = 12;  // below: kNoConsensus
   double min_depth_mm = 0.1;
   std::uint64_t seed = 0x5eed;
-  bool refine = true;         // run the PoseSolver on the best hypothesis' inliers
-  int refine_passes = 3;      // LM + re-classification of all points, until the set is stable
+  bool refine = true;     // run the PoseSolver on the best hypothesis' inliers
+  int refine_passes = 3;  // LM + re-classification of all points, until the set is stable
   PoseSolverOptions refine_options;
 };
 
 struct PnpRansacSummary {
   PnpRansacStatus status = PnpRansacStatus::kNotConfigured;
-  int num_valid = 0;            // finite input with positive information
-  int iterations = 0;           // samples drawn
-  int hypotheses = 0;           // P3P poses that passed the 4th-point check and were scored
-  int hypothesis_inliers = 0;   // inliers of the best hypothesis
-  int best_iteration = -1;      // sample (0-based) that produced the best hypothesis
-  int num_inliers = 0;          // inliers of the returned pose
-  bool refined = false;         // the returned pose is the LM refinement
-  PoseSolverSummary refine;     // the LM's summary (when refine was attempted)
+  int num_valid = 0;           // finite input with positive information
+  int iterations = 0;          // samples drawn
+  int hypotheses = 0;          // P3P poses that passed the 4th-point check and were scored
+  int hypothesis_inliers = 0;  // inliers of the best hypothesis
+  int best_iteration = -1;     // sample (0-based) that produced the best hypothesis
+  int num_inliers = 0;         // inliers of the returned pose
+  bool refined = false;        // the returned pose is the LM refinement
+  PoseSolverSummary refine;    // the LM's summary (when refine was attempted)
 };
 
 class PnpRansac {
@@ -91,12 +91,12 @@ class PnpRansac {
   bool refine(const Correspondences& c, const Pinhole& K, SE3* T, Summary* s);
 
   Options options_;
-  double threshold2_ = 0;  // inlier_threshold_px^2
-  std::vector<Vec3> bearing_;            // unnormalised rays of the observations
-  std::vector<int> valid_index_;         // indices of valid correspondences
-  std::vector<std::uint8_t> inlier_;     // result flags
+  double threshold2_ = 0;                      // inlier_threshold_px^2
+  std::vector<Vec3> bearing_;                  // unnormalised rays of the observations
+  std::vector<int> valid_index_;               // indices of valid correspondences
+  std::vector<std::uint8_t> inlier_;           // result flags
   std::vector<std::uint8_t> previous_inlier_;  // refine: set of the previous pass
-  std::vector<Vec3> in_p_model_;         // compacted inliers for the LM
+  std::vector<Vec3> in_p_model_;               // compacted inliers for the LM
   std::vector<Vec2> in_px_;
   std::vector<double> in_info_;
   PoseSolver solver_;

@@ -14,15 +14,24 @@ namespace st {
 
 const char* to_string(PoseStatus s) {
   switch (s) {
-    case PoseStatus::kConverged: return "converged";
-    case PoseStatus::kNotConverged: return "not converged: last round hit max_iterations";
-    case PoseStatus::kNotConfigured: return "pose solver not configured";
-    case PoseStatus::kTooManyPoints: return "more correspondences than the configured capacity";
-    case PoseStatus::kTooFewPoints: return "too few finite correspondences with positive information";
-    case PoseStatus::kNonFiniteInput: return "initial pose or camera not finite (or fx, fy <= 0)";
-    case PoseStatus::kPointsBehindCamera: return "too few points in front of the camera at the initial pose";
-    case PoseStatus::kTooFewInliers: return "too few chi2 inliers after outlier rejection";
-    case PoseStatus::kNumericalFailure: return "normal equations not solvable or non-finite values";
+    case PoseStatus::kConverged:
+      return "converged";
+    case PoseStatus::kNotConverged:
+      return "not converged: last round hit max_iterations";
+    case PoseStatus::kNotConfigured:
+      return "pose solver not configured";
+    case PoseStatus::kTooManyPoints:
+      return "more correspondences than the configured capacity";
+    case PoseStatus::kTooFewPoints:
+      return "too few finite correspondences with positive information";
+    case PoseStatus::kNonFiniteInput:
+      return "initial pose or camera not finite (or fx, fy <= 0)";
+    case PoseStatus::kPointsBehindCamera:
+      return "too few points in front of the camera at the initial pose";
+    case PoseStatus::kTooFewInliers:
+      return "too few chi2 inliers after outlier rejection";
+    case PoseStatus::kNumericalFailure:
+      return "normal equations not solvable or non-finite values";
   }
   return "unknown pose status";
 }
@@ -111,7 +120,8 @@ bool PoseSolver::linearize(const Correspondences& c, const Pinhole& K, const SE3
 // damping of the clamped diagonal, Nielsen's update of the damping).
 PoseSolver::RoundEnd PoseSolver::run_round(const Correspondences& c, const Pinhole& K, SE3* T,
                                            Summary* s) {
-  if (!linearize(c, K, *T, &lin_)) return RoundEnd::kFailed;
+  if (!lin_current_ && !linearize(c, K, *T, &lin_)) return RoundEnd::kFailed;
+  lin_current_ = true;  // every accepted step below keeps lin_ at *T
   if (s->initial_cost < 0) s->initial_cost = lin_.cost;
   s->final_cost = lin_.cost;
   double u = 1.0 / options_.initial_trust_region_radius, v = 2.0;
@@ -155,20 +165,41 @@ PoseSolver::RoundEnd PoseSolver::run_round(const Correspondences& c, const Pinho
 
 // ORB-SLAM's rejection: every valid correspondence (outliers included) is
 // tested at the new pose, so a point wrongly rejected early can come back.
+// lin_ (at T, from the round just run) is updated by the few points that
+// change sides, so the next round needs no full linearisation.
 int PoseSolver::classify(const Correspondences& c, const Pinhole& K, const SE3& T, bool* changed) {
   int n = 0;
   *changed = false;
   Vec2 r;
   for (int i = 0; i < c.count; ++i) {
     std::uint8_t in = 0;
-    if (valid_[i] &&
-        reprojection_residual(K, T, c.p_model[i], c.px_ideal[i], options_.min_depth_mm, &r, nullptr))
+    if (valid_[i] && reprojection_residual(K, T, c.p_model[i], c.px_ideal[i], options_.min_depth_mm,
+                                           &r, nullptr))
       in = c.info(i) * r.squaredNorm() < options_.chi2_threshold ? 1 : 0;
-    *changed |= in != inlier_[i];
+    if (in != inlier_[i]) {
+      *changed = true;
+      lin_current_ = lin_current_ && update_linearization(c, K, T, i, in ? 1.0 : -1.0);
+    }
     inlier_[i] = in;
     n += in;
   }
+  if (*changed && lin_current_) mirror_upper(&lin_.H);
   return n;
+}
+
+// Adds (sign +1) or removes (sign -1) observation i's terms in lin_ (upper
+// triangle of H; the caller mirrors). False if it cannot be evaluated.
+bool PoseSolver::update_linearization(const Correspondences& c, const Pinhole& K, const SE3& T,
+                                      int i, double sign) {
+  Vec2 r;
+  Mat26 J;
+  if (!reprojection_residual(K, T, c.p_model[i], c.px_ideal[i], options_.min_depth_mm, &r, &J))
+    return false;
+  const double info = c.info(i);
+  double weight;
+  lin_.cost += sign * 0.5 * huber(info * r.squaredNorm(), options_.huber_delta, &weight);
+  accumulate(J, r, sign * info * weight, &lin_.H, &lin_.g);
+  return true;
 }
 
 void PoseSolver::fill_quality(const Correspondences& c, const Pinhole& K, const SE3& T,
@@ -188,6 +219,11 @@ void PoseSolver::fill_quality(const Correspondences& c, const Pinhole& K, const 
   mirror_upper(&H);
   s->hessian = H;
   s->rms_reprojection_px = s->num_inliers > 0 ? std::sqrt(sum_r2 / s->num_inliers) : -1.0;
+  // Unobservable directions (degenerate geometry) show as a near-zero
+  // eigenvalue; the covariance is then not a quality measure.
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(H, Eigen::EigenvaluesOnly);
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues()[0] > 1e-10 * eig.eigenvalues()[5]))
+    return;
   const Eigen::LLT<Mat6> llt(H);
   if (llt.info() != Eigen::Success) return;
   s->covariance = llt.solve(Mat6::Identity());
@@ -215,6 +251,7 @@ bool PoseSolver::solve(const Correspondences& c, const Pinhole& K, SE3* T_camera
   if (!T_camera_model || !T_camera_model->all_finite() || !pinhole_is_usable(K))
     return (s.status = PoseStatus::kNonFiniteInput), false;
   last_count_ = c.count;
+  lin_current_ = false;
   const int in_front = count_usable(c, K, *T_camera_model);
   for (int i = 0; i < c.count; ++i) s.num_valid += valid_[i];
   s.status = s.num_valid < options_.min_inliers ? PoseStatus::kTooFewPoints

@@ -7,43 +7,66 @@
 namespace st::raster {
 namespace {
 
-// floor(n / m) and n - m * floor(n / m) for m > 0.
-inline void floor_divmod(std::int64_t n, std::int64_t m, std::int64_t* q, std::int64_t* r) {
-  std::int64_t qq = n / m, rr = n % m;
-  if (rr < 0) {
-    rr += m;
-    --qq;
-  }
-  *q = qq;
-  *r = rr;
-}
-inline std::int64_t floor_div(std::int64_t n, std::int64_t m) {
-  std::int64_t q, r;
-  floor_divmod(n, m, &q, &r);
-  return q;
-}
-inline std::int64_t ceil_div(std::int64_t n, std::int64_t m) { return -floor_div(-n, m); }
+// floor / ceil of a fixed-point coordinate in whole pixels (arithmetic
+// shift floors negative values too).
+inline std::int64_t floor_px(std::int64_t v) { return v >> kSubpixelBits; }
+inline std::int64_t ceil_px(std::int64_t v) { return -((-v) >> kSubpixelBits); }
 
 // ceil(N / m) of an edge bound, exactly, as N falls by dN every row:
 // N = q * m - r with 0 <= r < m; per row q drops by qd or qd + 1.
 struct EdgeWalk {
   std::int64_t q, r, m, qd, rd;
 
-  void init(std::int64_t n0, std::int64_t dn, std::int64_t m_in) {
+  void init(std::int64_t n0, std::int64_t dn, std::int64_t m_in, double inv_m) {
     m = m_in;
-    std::int64_t fq, fr;
-    floor_divmod(-n0, m, &fq, &fr);  // -n0 = fq m + fr  ->  n0 = -fq m - fr
-    q = -fq;
-    r = fr;
-    floor_divmod(dn, m, &qd, &rd);
+    q = exact_ceil_div(n0, m, inv_m, &r);
+    std::int64_t cr;
+    const std::int64_t cq = exact_ceil_div(dn, m, inv_m, &cr);
+    // floor division of dn from its ceiling: dn = qd m + rd, 0 <= rd < m.
+    const std::int64_t exact = cr == 0;
+    qd = cq - 1 + exact;
+    rd = exact ? 0 : m - cr;
   }
+  // An edge that never binds (q stays put): pads the walkers to two per side.
+  void init_inert(std::int64_t q_fixed) {
+    q = q_fixed;
+    r = qd = rd = 0;
+    m = 1;
+  }
+  // Branch-free: the carry is data-dependent, a branch would mispredict.
   void step() {
     r += rd;
-    q -= qd;
-    if (r >= m) {
-      r -= m;
-      --q;
+    const std::int64_t carry = r >= m;
+    q -= qd + carry;
+    r -= m & -carry;
+  }
+
+  // ceil(n / m) and r = q m - n in [0, m), from a floating-point estimate
+  // corrected exactly in integers (no 64-bit division). m >= kSubpixelScale
+  // and |n| < 2^58, so the estimate is off by at most 2 (usually 0 or 1);
+  // the loops are a safety net that does not run.
+  static std::int64_t exact_ceil_div(std::int64_t n, std::int64_t m, double inv_m,
+                                     std::int64_t* r) {
+    std::int64_t q = static_cast<std::int64_t>(static_cast<double>(n) * inv_m);
+    std::int64_t rem = q * m - n;
+    for (int k = 0; k < 2; ++k) {
+      const std::int64_t low = rem < 0;
+      q += low;
+      rem += m & -low;
     }
+    const std::int64_t high = rem >= m;
+    q -= high;
+    rem -= m & -high;
+    while (rem < 0) {
+      ++q;
+      rem += m;
+    }
+    while (rem >= m) {
+      --q;
+      rem -= m;
+    }
+    *r = rem;
+    return q;
   }
 };
 
@@ -79,6 +102,9 @@ constexpr std::uint32_t kLaneBytes[16] = {0x00000000u, 0x000000FFu, 0x0000FF00u,
                                           0xFF000000u, 0xFF0000FFu, 0xFF00FF00u, 0xFF00FFFFu,
                                           0xFFFF0000u, 0xFFFF00FFu, 0xFFFFFF00u, 0xFFFFFFFFu};
 
+// Set bits of a 4-bit lane mask (the baseline x86-64 ISA has no popcnt).
+constexpr int kLaneCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+
 // Same arithmetic as the portable kernel, 4 pixels per step. The last group
 // may reach 3 pixels past x1: those lanes are read and written back unchanged
 // (the buffers are padded, see Target).
@@ -108,7 +134,7 @@ void fill_span_simd(const Span& s, float* depth, std::int32_t* ids, std::uint8_t
     cv::v_store(depth + x, cv::v_select(pass, z, old));
     const cv::v_int32x4 old_id = cv::v_load(ids + x);
     cv::v_store(ids + x, cv::v_select(cv::v_reinterpret_as_s32(pass), id, old_id));
-    newly += __builtin_popcount(static_cast<unsigned>(cv::v_signmask(empty)));
+    newly += kLaneCount[cv::v_signmask(empty)];
     std::uint32_t m;
     std::memcpy(&m, mask + x, 4);
     m |= kLaneBytes[lanes];
@@ -127,45 +153,55 @@ inline void fill_span(const Span& s, bool use_simd, float* depth, std::int32_t* 
   fill_span_portable(s, depth, ids, mask, counters);
 }
 
-// The edge set of one triangle: edges bounding x from below / above, and the
-// row range (horizontal edges restrict rows, not columns).
+// The edge set of one triangle: two walkers bounding x from below and two
+// from above (a triangle has one or two of each; inert walkers pad the rest),
+// and the row range (horizontal edges restrict rows, not columns).
 struct Edges {
   EdgeWalk lower[2], upper[2];
-  int n_lower = 0, n_upper = 0;
   std::int64_t y_first = 0, y_last = -1;
 };
 
 // Pixel (x, y) is inside edge a->b if E = dx (Y - Ya) - dy (X - Xa) > 0, or
 // E == 0 on a top or left edge (dy < 0, or dy == 0 and dx > 0), X = x S.
-Edges setup_edges(const FixedTriangle& t, int height) {
+Edges setup_edges(const FixedTriangle& t, int width, int height) {
   constexpr std::int64_t S = kSubpixelScale;
   Edges e;
   const std::int64_t ymin = std::min({t.y[0], t.y[1], t.y[2]});
   const std::int64_t ymax = std::max({t.y[0], t.y[1], t.y[2]});
-  e.y_first = std::max<std::int64_t>(0, ceil_div(ymin, S));
-  e.y_last = std::min<std::int64_t>(height - 1, floor_div(ymax, S));
+  e.y_first = std::max<std::int64_t>(0, ceil_px(ymin));
+  e.y_last = std::min<std::int64_t>(height - 1, floor_px(ymax));
+  int n_lower = 0, n_upper = 0;
+  // 1/|dy| of the three edges from one division (an estimate is enough: the
+  // edge walkers correct it exactly). Horizontal edges count as 1.
+  double ady[3];
+  for (int i = 0; i < 3; ++i) {
+    const std::int64_t dy = t.y[i == 2 ? 0 : i + 1] - t.y[i];
+    ady[i] = dy == 0 ? 1.0 : static_cast<double>(dy < 0 ? -dy : dy);
+  }
+  const double inv_all = 1.0 / (ady[0] * ady[1] * ady[2] * static_cast<double>(S));
+  const double inv_m[3] = {ady[1] * ady[2] * inv_all, ady[0] * ady[2] * inv_all,
+                           ady[0] * ady[1] * inv_all};
   for (int i = 0; i < 3; ++i) {
     const int j = i == 2 ? 0 : i + 1;
     const std::int64_t dx = t.x[j] - t.x[i], dy = t.y[j] - t.y[i];
     const bool top_left = dy < 0 || (dy == 0 && dx > 0);
     if (dy == 0) {  // top edge: rows at or below it; bottom edge: rows strictly above
       if (dx > 0)
-        e.y_first = std::max(e.y_first, ceil_div(t.y[i], S));
+        e.y_first = std::max(e.y_first, ceil_px(t.y[i]));
       else
-        e.y_last = std::min(e.y_last, ceil_div(t.y[i], S) - 1);
+        e.y_last = std::min(e.y_last, ceil_px(t.y[i]) - 1);
       continue;
     }
     // Inside: A x + B(y) + bias >= 0 with A = -dy S; bound x >= N / A (A > 0)
     // or x <= -N / |A| (A < 0), N = -(B(y) + bias), N falls by dx S per row.
     const std::int64_t bias = top_left ? 0 : -1;
     const std::int64_t n0 = -(dx * (e.y_first * S - t.y[i]) + dy * t.x[i] + bias);
-    EdgeWalk w;
-    w.init(n0, dx * S, (dy < 0 ? -dy : dy) * S);
-    if (dy < 0)
-      e.lower[e.n_lower++] = w;
-    else
-      e.upper[e.n_upper++] = w;
+    EdgeWalk& w = dy < 0 ? e.lower[n_lower++] : e.upper[n_upper++];
+    w.init(n0, dx * S, (dy < 0 ? -dy : dy) * S, inv_m[i]);
   }
+  if (n_lower < 2) e.lower[1].init_inert(0);                   // x >= 0 anyway
+  if (n_upper < 2) e.upper[1].init_inert(-(width - 1));        // x <= width - 1 anyway
+  if (n_lower == 0 || n_upper == 0) e.y_last = e.y_first - 1;  // degenerate: nothing
   return e;
 }
 
@@ -175,30 +211,34 @@ bool simd_enabled() { return CV_SIMD128 != 0; }
 
 void rasterize(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t id,
                const Target& target, Counters* counters) {
-  Edges e = setup_edges(tri, target.height);
+  Edges e = setup_edges(tri, target.width, target.height);
   const std::int64_t x_limit = target.width - 1;
   Span s;
   s.gx = static_cast<float>(plane.gx);
   s.iz_min = plane.iz_min;
   s.iz_max = plane.iz_max;
   s.id = id;
+  std::int64_t fragments = 0;
   for (std::int64_t y = e.y_first; y <= e.y_last; ++y) {
-    std::int64_t x0 = 0, x1 = x_limit;
-    for (int i = 0; i < e.n_lower; ++i) x0 = std::max(x0, e.lower[i].q);
-    for (int i = 0; i < e.n_upper; ++i) x1 = std::min(x1, -e.upper[i].q);
-    if (x0 <= x1) {
-      s.x0 = static_cast<int>(x0);
-      s.x1 = static_cast<int>(x1);
-      s.iz0 = static_cast<float>(plane.c + plane.gy * static_cast<double>(y) +
-                                 plane.gx * static_cast<double>(x0));
-      const std::ptrdiff_t row = static_cast<std::ptrdiff_t>(y) * target.stride;
-      fill_span(s, target.use_simd, target.depth + row, target.triangle_id + row, target.mask + row,
-                counters);
-      counters->fragments += x1 - x0 + 1;
-    }
-    for (int i = 0; i < e.n_lower; ++i) e.lower[i].step();
-    for (int i = 0; i < e.n_upper; ++i) e.upper[i].step();
+    const std::int64_t x0 = std::max({std::int64_t{0}, e.lower[0].q, e.lower[1].q});
+    const std::int64_t x1 = std::min({x_limit, -e.upper[0].q, -e.upper[1].q});
+    e.lower[0].step();
+    e.lower[1].step();
+    e.upper[0].step();
+    e.upper[1].step();
+    if (x0 > x1) continue;
+    s.x0 = static_cast<int>(x0);
+    s.x1 = static_cast<int>(x1);
+    s.iz0 = static_cast<float>(plane.c + plane.gy * static_cast<double>(y) +
+                               plane.gx * static_cast<double>(x0));
+    const std::ptrdiff_t row = static_cast<std::ptrdiff_t>(y) * target.stride;
+    fill_span(s, target.use_simd, target.depth + row, target.triangle_id + row, target.mask + row,
+              counters);
+    target.dirty_x0[y] = std::min(target.dirty_x0[y], s.x0);
+    target.dirty_x1[y] = std::max(target.dirty_x1[y], s.x1);
+    fragments += x1 - x0 + 1;
   }
+  counters->fragments += fragments;
 }
 
 }  // namespace st::raster

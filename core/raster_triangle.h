@@ -28,6 +28,10 @@ struct Target {
   int width = 0, height = 0;
   std::ptrdiff_t stride = 0;
   bool use_simd = true;  // false: the portable span kernel (tests compare both)
+  // Per row, the columns written so far [dirty_x0, dirty_x1] (height
+  // entries each): the next render clears only those.
+  std::int32_t* dirty_x0 = nullptr;
+  std::int32_t* dirty_x1 = nullptr;
 };
 
 // 1/z over the image: iz(x, y) = c + gx * x + gy * y (raster pixels),

@@ -53,6 +53,8 @@ class MeshRasterizer {
   // Only K_full's intrinsics are used; the raster size comes from configure().
   void render(const SE3& T_camera_model, const Pinhole& K_full);
   const RasterStats& stats() const { return stats_; }
+  // True if this build runs the SIMD span kernel (config.use_simd permitting).
+  static bool simd_available();
 
   const RasterConfig& config() const { return config_; }
   // The pinhole of the raster (K_full scaled by 1/downscale).
@@ -88,6 +90,7 @@ class MeshRasterizer {
   static constexpr double kSameSurfaceRelDepth = 0.02;
 
  private:
+  void order_for_locality(const Mesh& mesh);
   void clear_buffers();
   raster::Target target();
   void transform_vertices();
@@ -105,7 +108,8 @@ class MeshRasterizer {
 
   // The mesh, copied at configure().
   std::vector<float> model_x_, model_y_, model_z_;
-  std::vector<std::int32_t> tri_;
+  std::vector<std::int32_t> tri_;     // in draw order (see order_for_locality)
+  std::vector<std::int32_t> tri_id_;  // draw order -> the mesh's triangle id
   // Per render, per vertex: camera frame (mm), frustum outcode, snapped
   // pixel position (1/4096 px; valid where the outcode has no clip bit).
   std::vector<double> cam_x_, cam_y_, cam_z_;
@@ -115,6 +119,8 @@ class MeshRasterizer {
   std::vector<float> depth_buf_;
   std::vector<std::int32_t> id_buf_;
   std::vector<std::uint8_t> mask_buf_;
+  // Per raster row, the columns the last render wrote (cleared next time).
+  std::vector<std::int32_t> dirty_x0_, dirty_x1_;
   // Scratch for the const helpers (sized at configure; single-threaded use).
   mutable std::vector<std::uint64_t> visible_bits_;
   mutable std::vector<std::uint8_t> morph_rows_;

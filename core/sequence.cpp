@@ -102,10 +102,47 @@ Status read_scalars(const cv::FileStorage& fs, SequenceConfig* c) {
   return Status::Ok();
 }
 
+bool is_key_start(char ch) { return (ch >= 'A' && ch <= 'Z') || (ch >= 'a' && ch <= 'z') || ch == '_'; }
+bool is_key_char(char ch) { return is_key_start(ch) || (ch >= '0' && ch <= '9') || ch == '-'; }
+
+// sequence.yaml is a flat map: top-level "key: value" lines, indented
+// continuation lines (matrices), comments, "%YAML" and "---". Anything
+// else is refused before cv::FileStorage sees it: OpenCV 4.6's YAML reader
+// loops forever on some malformed top-level lines (found by
+// fuzz_sequence_yaml, e.g. "---x: 1" followed by "-]--/y: 64").
+Status check_yaml_shape(std::string_view text) {
+  int number = 0;
+  for (std::size_t pos = 0; pos < text.size();) {
+    std::size_t eol = text.find('\n', pos);
+    if (eol == std::string_view::npos) eol = text.size();
+    std::string_view line = text.substr(pos, eol - pos);
+    pos = eol + 1;
+    ++number;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    for (char ch : line)
+      if ((static_cast<unsigned char>(ch) < 0x20 && ch != '\t') || ch == 0x7f)
+        return make_error("sequence.yaml line " + std::to_string(number) +
+                          " contains control characters (not a text file?)");
+    if (line.empty() || line.front() == ' ' || line.front() == '#' || line == "---" ||
+        line == "..." || line.substr(0, 5) == "%YAML")
+      continue;
+    std::size_t k = 0;
+    if (!is_key_start(line[0])) k = line.size();
+    while (k < line.size() && is_key_char(line[k])) ++k;
+    while (k < line.size() && line[k] == ' ') ++k;
+    if (k < line.size() && line[k] == ':' && (k + 1 == line.size() || line[k + 1] == ' ')) continue;
+    return make_error("sequence.yaml line " + std::to_string(number) +
+                      ": expected 'key: value' (a flat OpenCV YAML map), found '" +
+                      std::string(line.substr(0, 40)) + "'");
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 Result<SequenceConfig> parse_sequence_yaml(std::string_view text) {
   if (text.empty()) return make_error("sequence.yaml is empty");
+  if (Status shape = check_yaml_shape(text); !shape) return Error{shape.message()};
   SequenceConfig c;
   try {
     cv::FileStorage fs(std::string(text), cv::FileStorage::READ | cv::FileStorage::MEMORY);

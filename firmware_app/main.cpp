@@ -1,18 +1,46 @@
 // scopetrack: the tracker application. main() is the only place that exits.
+// Modes are rows of kCommands; add a row (and a file) for a new mode.
+#include <array>
 #include <cstdio>
-#include <cstring>
+#include <string_view>
 
-static void print_usage() {
-  std::printf(
-      "usage: scopetrack --version\n"
-      "ScopeTrack " "0.1.0" ": laparoscope pose tracking against a prior organ mesh\n");
+#include "firmware_app/cli.h"
+
+namespace {
+
+constexpr std::string_view kVersion = "0.1.0";
+
+int run_version(st::app::Args) {
+  std::printf("scopetrack %.*s\n", static_cast<int>(kVersion.size()), kVersion.data());
+  return 0;
+}
+int run_help(st::app::Args);
+
+constexpr std::array kCommands = {
+    st::app::Command{"--check", "DIR", "validate a sequence folder and say whether it is usable",
+                     st::app::run_check},
+    st::app::Command{"--version", "", "print the version", run_version},
+    st::app::Command{"--help", "", "this text", run_help},
+};
+
+int run_help(st::app::Args) {
+  std::printf("ScopeTrack %.*s: laparoscope pose tracking against a prior organ mesh\nusage:\n",
+              static_cast<int>(kVersion.size()), kVersion.data());
+  for (const auto& c : kCommands)
+    std::printf("  scopetrack %-10.*s %-6.*s %.*s\n", static_cast<int>(c.flag.size()), c.flag.data(),
+                static_cast<int>(c.usage.size()), c.usage.data(), static_cast<int>(c.help.size()),
+                c.help.data());
+  return 0;
 }
 
+}  // namespace
+
 int main(int argc, char** argv) {
-  if (argc >= 2 && std::strcmp(argv[1], "--version") == 0) {
-    std::printf("scopetrack 0.1.0\n");
-    return 0;
+  if (argc >= 2) {
+    for (const auto& c : kCommands)
+      if (c.flag == argv[1]) return c.run(st::app::Args(argv + 2, static_cast<std::size_t>(argc - 2)));
+    std::fprintf(stderr, "scopetrack: unknown option '%s'\n", argv[1]);
   }
-  print_usage();
-  return argc >= 2 && std::strcmp(argv[1], "--help") == 0 ? 0 : 2;
+  run_help({});
+  return 2;
 }

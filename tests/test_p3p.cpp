@@ -128,8 +128,7 @@ TEST_CASE("p3p: points behind the camera and random garbage never yield NaN") {
     behind_solutions += n;
     for (int k = 0; k < n; ++k) {
       CHECK(s.T_camera_model[k].all_finite());
-      for (int i = 0; i < 3; ++i)
-        CHECK((s.T_camera_model[k] * c.p_model[i]).dot(c.bearing[i]) > 0);
+      for (int i = 0; i < 3; ++i) CHECK((s.T_camera_model[k] * c.p_model[i]).dot(c.bearing[i]) > 0);
     }
     // Garbage at any scale.
     std::array<Vec3, 3> b, p;

@@ -17,9 +17,9 @@
 #endif
 
 using namespace st;
+using st::test::camera_centre_distance_mm;
 using st::test::make_liver_scene;
 using st::test::PoseSceneOptions;
-using st::test::camera_centre_distance_mm;
 
 namespace {
 
@@ -72,8 +72,8 @@ TEST_CASE("pnp ransac: 50% outliers, 1 px noise, liver geometry: < 0.5 deg, < 1 
       outliers_kept += scene.is_outlier[i] && ransac.inliers()[i];
       inliers_lost += !scene.is_outlier[i] && ransac.inliers()[i] == 0;
     }
-    CHECK(outliers_kept <= 2);   // an outlier displaced along its epipolar-free ray may fit
-    CHECK(inliers_lost <= 25);   // ~5% of 250 by the 95% chi2 test
+    CHECK(outliers_kept <= 2);  // an outlier displaced along its epipolar-free ray may fit
+    CHECK(inliers_lost <= 25);  // ~5% of 250 by the 95% chi2 test
     // Adaptive stop: after the best hypothesis was found, no more samples
     // than the rule asks for at its inlier ratio w: log(0.01) / log(1 - w^4).
     const double w = s.hypothesis_inliers / static_cast<double>(s.num_valid);
@@ -82,7 +82,7 @@ TEST_CASE("pnp ransac: 50% outliers, 1 px noise, liver geometry: < 0.5 deg, < 1 
     CHECK(s.iterations >= std::min(needed, 1000.0));
   }
   MESSAGE("worst pose error over 20 scenes: " << worst_deg << " deg, camera centre " << worst_mm
-                                                << " mm");
+                                              << " mm");
   CHECK(worst_deg < 0.5);
   CHECK(worst_mm < 1.0);
 }
@@ -149,7 +149,8 @@ TEST_CASE("pnp ransac: failures are reported and leave the pose alone") {
 
   // NaN correspondences are skipped, the rest still solves.
   auto partly_nan = scene;
-  for (int i = 0; i < 50; ++i) partly_nan.p_model[2 * i + 1].x() = std::numeric_limits<double>::quiet_NaN();
+  for (int i = 0; i < 50; ++i)
+    partly_nan.p_model[2 * i + 1].x() = std::numeric_limits<double>::quiet_NaN();
   REQUIRE(ransac.solve(partly_nan.view(), scene.K, &T, &s));
   CHECK(s.num_valid == 450);
   CHECK(pose_delta(T, scene.T_camera_model).angle_deg < 0.5);
@@ -203,8 +204,9 @@ TEST_CASE("pnp ransac: accuracy and time next to cv::solvePnPRansac (report)") {
     cv_ms += std::chrono::duration<double, std::milli>(t2 - t1).count() / scenes;
   }
   MESSAGE("mean over " << scenes << " scenes (500 corr., 50% outliers, 1 px): ours " << ours_deg
-                       << " deg " << ours_mm << " mm (camera centre) " << ours_ms << " ms; cv::solvePnPRansac(P3P) "
-                       << cv_deg << " deg " << cv_mm << " mm " << cv_ms << " ms");
+                       << " deg " << ours_mm << " mm (camera centre) " << ours_ms
+                       << " ms; cv::solvePnPRansac(P3P) " << cv_deg << " deg " << cv_mm << " mm "
+                       << cv_ms << " ms");
   CHECK(ours_deg < 0.5);
   CHECK(ours_mm < 1.0);
 }

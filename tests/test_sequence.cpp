@@ -93,8 +93,9 @@ TEST_CASE("sequence: bad sequence.yaml gives clear errors, never throws") {
   const Case cases[] = {
       {"", "empty"},
       {"%YAML:1.0\n---\nimage_width: [1, 2\n", "YAML"},                             // broken YAML
-      {"\x01\x02\x03 garbage {{{", "sequence.yaml"},
-      {"<?xml version=\"1.0\"?>\n<opencv_storage><x>1</x>", "sequence.yaml"},
+      {"\x01\x02\x03 garbage {{{", "control characters"},
+      {"<?xml version=\"1.0\"?>\n<opencv_storage><x>1</x>", "expected 'key: value'"},
+      {"{\"image_width\": 64}", "expected 'key: value'"},
       {"%YAML:1.0\n---\nfoo: 1\n", "image_width"},
       {with_replaced("image_width", "image_width: 0"), "image size"},
       {with_replaced("image_width", "image_width: 100000"), "image size"},
@@ -113,6 +114,10 @@ TEST_CASE("sequence: bad sequence.yaml gives clear errors, never throws") {
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, 0, 0, 1, 0, 0, 0, 0, -1, 0, 0, 0, 0, 1")), "not rigid"},
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0.01, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1")), "not rigid"},
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1")), "last row"},
+      // Found by fuzz_sequence_yaml: OpenCV 4.6's YAML reader never returns on these.
+      {"%YAML:1.0\n---x: 1\n-]--/y: 64\nz", "line 2"},
+      {std::string("%YAML:1.0\n---/im\xda" "age_width: AML:1.0\n-]--/image_width: 64\nimage_height: 48\na: [ 0., 0., "), "line 2"},
+      {"%YAML:1.0\n---\nimage_width: 64\n\x01\x02\n", "control characters"},
       // Found by fuzz_sequence_yaml: cv::Mat reading allocated rows x cols as written.
       {with_replaced("camera_matrix", "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: \xbb\n   dt: d\n   data: [ 60., 0., 31.5, 01, 60., 23.5, 0., 0., 1. ]"), "3x3"},
       {with_replaced("camera_matrix", "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 2000000000\n   dt: d\n   data: [ 1 ]"), "3x3"},

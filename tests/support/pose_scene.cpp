@@ -46,7 +46,8 @@ const LiverMesh& liver() {
 
 Vec3 triangle_normal(const LiverMesh& m, int t) {
   const auto& tri = m.triangles[t];
-  const Vec3 n = (m.vertices[tri[1]] - m.vertices[tri[0]]).cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
+  const Vec3 n =
+      (m.vertices[tri[1]] - m.vertices[tri[0]]).cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
   return n.normalized();
 }
 
@@ -94,7 +95,8 @@ PoseScene make_liver_scene(const PoseSceneOptions& opt) {
     candidates.clear();
     for (int t = 0; t < static_cast<int>(m.triangles.size()); ++t) {
       const auto& tr = m.triangles[t];
-      if (sees(s, (m.vertices[tr[0]] + m.vertices[tr[1]] + m.vertices[tr[2]]) / 3.0, triangle_normal(m, t)))
+      if (sees(s, (m.vertices[tr[0]] + m.vertices[tr[1]] + m.vertices[tr[2]]) / 3.0,
+               triangle_normal(m, t)))
         candidates.push_back(t);
     }
   }

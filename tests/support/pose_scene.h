@@ -15,8 +15,8 @@
 namespace st::test {
 
 struct LiverMesh {
-  std::vector<Vec3> vertices;                  // mm, CT frame
-  std::vector<std::array<int, 3>> triangles;   // outward normals
+  std::vector<Vec3> vertices;                 // mm, CT frame
+  std::vector<std::array<int, 3>> triangles;  // outward normals
 };
 // Reads the binary little-endian PLY (float x y z, uchar-int faces). Empty
 // mesh when the file is missing or not in that form.
@@ -24,16 +24,16 @@ LiverMesh load_liver_mesh();
 
 struct PoseSceneOptions {
   int num_points = 300;
-  double outlier_ratio = 0.0;   // fraction of correspondences replaced by gross outliers
-  double noise_px = 0.0;        // level-0 pixel noise sigma (scaled by 1.2^octave)
-  int max_octave = 7;           // octaves drawn uniformly in [0, max_octave]
-  double distance_mm = 100.0;   // camera to the looked-at surface point
+  double outlier_ratio = 0.0;  // fraction of correspondences replaced by gross outliers
+  double noise_px = 0.0;       // level-0 pixel noise sigma (scaled by 1.2^octave)
+  int max_octave = 7;          // octaves drawn uniformly in [0, max_octave]
+  double distance_mm = 100.0;  // camera to the looked-at surface point
   std::uint32_t seed = 1;
 };
 
 struct PoseScene {
   Pinhole K{1000.0, 1000.0, 639.5, 359.5, 1280, 720};
-  SE3 T_camera_model;            // ground truth
+  SE3 T_camera_model;  // ground truth
   std::vector<Vec3> p_model;
   std::vector<Vec2> px_ideal;
   std::vector<double> information;

@@ -3,6 +3,7 @@
 // laparoscopic geometry: a smooth organ-like surface 60-140 mm in front of a
 // 1280x720 camera with fx = 1000, level-0 pixel noise 1 px scaled by
 // 1.2^octave (octaves 0-7), gross outliers displaced 20-300 px.
+// `scopetrack-bench pose variants` adds rows for option trade-offs.
 // No baseline: calib3d is not linked into the bench (the tests print
 // cv::solvePnPRansac next to ours).
 #include <cmath>
@@ -66,14 +67,15 @@ double centre_error_mm(const SE3& a, const SE3& b) {
 }
 
 // Pose LM from a constant-velocity-like prediction error (2 deg, 5 mm).
-Row bench_lm(const Options& opt, int inliers, double outlier_ratio) {
+Row bench_lm(const Options& opt, int inliers, double outlier_ratio,
+             const PoseSolverOptions& po = {}, const std::string& label = "") {
   const int n = static_cast<int>(std::lround(inliers / (1.0 - outlier_ratio)));
   std::vector<Scene> scenes;
   for (std::uint32_t k = 0; k < 10; ++k) scenes.push_back(make_scene(n, outlier_ratio, 100 + k));
   PoseSolver solver;
-  if (!solver.configure(n).ok()) return {};
+  if (!solver.configure(n, po).ok()) return {};
   Row row;
-  row.name = "pose LM " + std::to_string(n) + " corr (" + std::to_string(inliers) + " inl)";
+  row.name = "pose LM " + std::to_string(n) + " corr (" + std::to_string(inliers) + " inl)" + label;
   std::mt19937 rng(5);
   std::normal_distribution<double> g(0.0, 1.0);
   const int iterations = opt.iterations > 0 ? opt.iterations : 1000;
@@ -94,7 +96,8 @@ Row bench_lm(const Options& opt, int inliers, double outlier_ratio) {
     err.push_back(centre_error_mm(T, sc.T_camera_model));
   }
   char note[160];
-  std::snprintf(note, sizeof note, "mean LM iterations %.1f, rounds %.2f; median camera-centre error %.3f mm",
+  std::snprintf(note, sizeof note,
+                "mean LM iterations %.1f, rounds %.2f; median camera-centre error %.3f mm",
                 iters / iterations, rounds / iterations, median(err));
   row.note = note;
   return row;
@@ -164,6 +167,16 @@ int run(const Options& opt) {
   info(opt, "pose: synthetic surface 60-140 mm, fx 1000, 1280x720, 1 px * 1.2^octave noise");
   report(opt, bench_lm(opt, 300, 0.2));
   report(opt, bench_lm(opt, 1200, 0.2));
+  if (!opt.args.empty() && opt.args[0] == "variants") {  // option trade-offs for the tracker
+    PoseSolverOptions tight;
+    tight.function_tolerance = 1e-8;
+    report(opt, bench_lm(opt, 1200, 0.2, tight, " ftol 1e-8"));
+    for (int rounds : {3, 2}) {
+      PoseSolverOptions o;
+      o.rounds = rounds;
+      report(opt, bench_lm(opt, 1200, 0.2, o, " rounds " + std::to_string(rounds)));
+    }
+  }
   report(opt, bench_ransac(opt, 500, 0.5));
   report(opt, bench_p3p(opt));
   return 0;
@@ -171,7 +184,7 @@ int run(const Options& opt) {
 
 }  // namespace
 
-SCOPETRACK_BENCH_STAGE("pose", "pose LM (300 / 1200 inliers + 20% outliers), PnP RANSAC (500, 50% out), P3P",
-                       run);
+SCOPETRACK_BENCH_STAGE(
+    "pose", "pose LM (300 / 1200 inliers + 20% outliers), PnP RANSAC (500, 50% out), P3P", run);
 
 }  // namespace st::bench

@@ -19,7 +19,7 @@ for t in "${targets[@]}"; do
   cp -n tools/fuzz/seeds/$t/* "$out/corpus/" 2>/dev/null || true
   echo "== fuzz_$t for ${seconds}s"
   ASAN_OPTIONS=detect_leaks=1 build-fuzz/bin/fuzz_$t -max_total_time="$seconds" -max_len=65536 \
-    -rss_limit_mb=2048 -artifact_prefix="$out/" -print_final_stats=1 "$out/corpus" 2>"$out/log.txt" || {
+    -rss_limit_mb=2048 -timeout=10 -artifact_prefix="$out/" -print_final_stats=1 "$out/corpus" 2>"$out/log.txt" || {
     echo "fuzz_$t FAILED: see $out/log.txt"; tail -30 "$out/log.txt"; exit 1; }
   grep -E "stat::number_of_executed_units|stat::peak_rss_mb" "$out/log.txt" | sed "s/^/  /"
 done

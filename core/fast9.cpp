@@ -1,0 +1,153 @@
+#include "core/fast9.h"
+
+#include <algorithm>
+#include <bit>
+#include <cstring>
+#include <string>
+
+#include <opencv2/core/hal/intrin.hpp>
+
+namespace st {
+namespace {
+
+// Bresenham circle of radius 3, clockwise from the top.
+constexpr int kCircleDx[16] = {0, 1, 2, 3, 3, 3, 2, 1, 0, -1, -2, -3, -3, -3, -2, -1};
+constexpr int kCircleDy[16] = {-3, -3, -2, -1, 0, 1, 2, 3, 3, 3, 2, 1, 0, -1, -2, -3};
+
+// max over the 16 arcs of 9 of the arc's minimum of d (d has 25 entries:
+// the 16 circle values followed by the first 9 again).
+int best_arc_min(const int* d) {
+  int m2[24], m4[22], m8[18];
+  for (int i = 0; i < 24; ++i) m2[i] = std::min(d[i], d[i + 1]);
+  for (int i = 0; i < 22; ++i) m4[i] = std::min(m2[i], m2[i + 2]);
+  for (int i = 0; i < 18; ++i) m8[i] = std::min(m4[i], m4[i + 4]);
+  int best = 0;
+  for (int i = 0; i < 16; ++i) best = std::max(best, std::min(m8[i], d[i + 8]));
+  return best;
+}
+
+}  // namespace
+
+int fast9_score(GrayView image, int x, int y) {
+  const std::uint8_t* p = image.row(y) + x;
+  const int c = p[0];
+  int bright[25], dark[25];
+  for (int i = 0; i < 25; ++i) {
+    const int k = i & 15;
+    const int v = p[kCircleDy[k] * image.stride + kCircleDx[k]];
+    bright[i] = v - c;
+    dark[i] = c - v;
+  }
+  return std::max(best_arc_min(bright), best_arc_min(dark));
+}
+
+Status Fast9Detector::configure(int max_width) {
+  if (max_width < 8 || max_width > 65535)
+    return make_error("Fast9Detector: max_width " + std::to_string(max_width) + " outside [8, 65535]");
+  max_width_ = max_width;
+  score_rows_.assign(static_cast<std::size_t>(max_width) * 3, 0);
+  corner_xs_.assign(static_cast<std::size_t>(max_width) * 3, 0);
+  return Status::Ok();
+}
+
+void Fast9Detector::score_row(GrayView image, int y, int threshold, int x_begin, int x_end,
+                              const std::uint8_t* allowed, std::uint8_t* scores,
+                              std::uint16_t* xs, int* n) {
+  const std::uint8_t* p = image.row(y);
+  int x = x_begin;
+#if CV_SIMD128
+  std::ptrdiff_t off[16];
+  for (int i = 0; i < 16; ++i) off[i] = kCircleDy[i] * image.stride + kCircleDx[i];
+  const cv::v_uint8x16 tv = cv::v_setall_u8(static_cast<std::uint8_t>(threshold));
+  const cv::v_uint8x16 one = cv::v_setall_u8(1), eight = cv::v_setall_u8(8);
+  for (; x + 16 <= x_end; x += 16) {
+    if (allowed && !(allowed[x >> 4] | allowed[(x + 15) >> 4])) continue;
+    const std::uint8_t* q = p + x;
+    const cv::v_uint8x16 v = cv::v_load(q);
+    const cv::v_uint8x16 hi = v + tv, lo = v - tv;  // saturating
+    const cv::v_uint8x16 c0 = cv::v_load(q + off[0]), c4 = cv::v_load(q + off[4]);
+    const cv::v_uint8x16 c8 = cv::v_load(q + off[8]), c12 = cv::v_load(q + off[12]);
+    // A 9-arc holds one of {0, 8} and one of {4, 12}.
+    const cv::v_uint8x16 quick = (((c0 > hi) | (c8 > hi)) & ((c4 > hi) | (c12 > hi))) |
+                                 (((c0 < lo) | (c8 < lo)) & ((c4 < lo) | (c12 < lo)));
+    if (!cv::v_check_any(quick)) continue;
+    cv::v_uint8x16 bright[16], dark[16];
+    for (int i = 0; i < 16; ++i) {
+      const cv::v_uint8x16 c = cv::v_load(q + off[i]);
+      bright[i] = c > hi;
+      dark[i] = c < lo;
+    }
+    cv::v_uint8x16 run_b = cv::v_setzero_u8(), run_d = run_b, max_b = run_b, max_d = run_b;
+    for (int i = 0; i < 25; ++i) {
+      run_b = (run_b + one) & bright[i & 15];
+      run_d = (run_d + one) & dark[i & 15];
+      max_b = cv::v_max(max_b, run_b);
+      max_d = cv::v_max(max_d, run_d);
+    }
+    unsigned mask = static_cast<unsigned>(cv::v_signmask(cv::v_max(max_b, max_d) > eight));
+    while (mask) {
+      const int xx = x + std::countr_zero(mask);
+      mask &= mask - 1;
+      const int s = fast9_score(image, xx, y);
+      if (s > threshold) {
+        scores[xx] = static_cast<std::uint8_t>(s);
+        xs[(*n)++] = static_cast<std::uint16_t>(xx);
+      }
+    }
+  }
+#endif
+  for (; x < x_end; ++x) {
+    if (allowed && !allowed[x >> 4]) continue;
+    const int s = fast9_score(image, x, y);
+    if (s > threshold) {
+      scores[x] = static_cast<std::uint8_t>(s);
+      xs[(*n)++] = static_cast<std::uint16_t>(x);
+    }
+  }
+}
+
+int Fast9Detector::detect(GrayView image, int threshold, int border, const std::uint8_t* allowed,
+                          int allowed_stride, FastCorner* out, int capacity) {
+  border = std::max(border, 3);
+  threshold = std::clamp(threshold, 0, 254);
+  const int w = image.width, h = image.height;
+  if (w > max_width_ || w < 2 * border + 1 || h < 2 * border + 1) return 0;
+  std::uint8_t* srow[3];
+  std::uint16_t* xrow[3];
+  int nrow[3] = {0, 0, 0};
+  for (int i = 0; i < 3; ++i) {
+    srow[i] = score_rows_.data() + static_cast<std::size_t>(i) * max_width_;
+    xrow[i] = corner_xs_.data() + static_cast<std::size_t>(i) * max_width_;
+    std::memset(srow[i], 0, static_cast<std::size_t>(w));
+  }
+  int count = 0;
+  // Row y is scored into slot 2; the suppression runs on slot 1 (row y - 1)
+  // against slots 0 and 2; then the slots rotate.
+  for (int y = border; y <= h - border; ++y) {
+    if (y < h - border) {
+      const std::uint8_t* arow = allowed ? allowed + static_cast<std::ptrdiff_t>(y) * allowed_stride : nullptr;
+      score_row(image, y, threshold, border, w - border, arow, srow[2], xrow[2], &nrow[2]);
+    }
+    const std::uint8_t *up = srow[0], *mid = srow[1], *dn = srow[2];
+    for (int i = 0; i < nrow[1] && count < capacity; ++i) {
+      const int x = xrow[1][i];
+      const int s = mid[x];
+      // Strict against earlier neighbours, non-strict against later ones:
+      // exactly one pixel of a plateau survives.
+      if (s <= up[x - 1] || s <= up[x] || s <= up[x + 1] || s <= mid[x - 1]) continue;
+      if (s < mid[x + 1] || s < dn[x - 1] || s < dn[x] || s < dn[x + 1]) continue;
+      out[count++] = FastCorner{static_cast<std::uint16_t>(x), static_cast<std::uint16_t>(y - 1),
+                                static_cast<std::uint8_t>(s)};
+    }
+    // Rotate: clear the oldest slot's corners and reuse it for the next row.
+    for (int i = 0; i < nrow[0]; ++i) srow[0][xrow[0][i]] = 0;
+    std::uint8_t* s0 = srow[0];
+    std::uint16_t* x0 = xrow[0];
+    srow[0] = srow[1]; xrow[0] = xrow[1]; nrow[0] = nrow[1];
+    srow[1] = srow[2]; xrow[1] = xrow[2]; nrow[1] = nrow[2];
+    srow[2] = s0; xrow[2] = x0; nrow[2] = 0;
+  }
+  return count;
+}
+
+}  // namespace st

@@ -1,0 +1,42 @@
+// FeatureGrid: a per-frame grid index over a FeatureSet's keypoints, for
+// "which keypoints lie within r pixels of (x, y)" in search by projection.
+// Cells are cell_px x cell_px level-0 pixels; the index is a counting sort
+// (cell starts + keypoint indices), so build() is O(keypoints + cells).
+//
+// configure() allocates (cells and kMaxKeypoints indices); build() and
+// query() allocate nothing. Tracking thread.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/feature_set.h"
+#include "core/result.h"
+
+namespace st {
+
+class FeatureGrid {
+ public:
+  Status configure(int width, int height, int cell_px = 16);
+  // Indexes features (its keypoints must refer to the configured size;
+  // keypoints outside the image are clamped into the border cells).
+  void build(const FeatureSet& features);
+  // Writes the indices of keypoints with |p - (x, y)| <= radius and octave in
+  // [min_octave, max_octave] (pass -1, -1 for any) to out (at most capacity);
+  // returns how many were written.
+  int query(const FeatureSet& features, float x, float y, float radius, int min_octave,
+            int max_octave, int* out, int capacity) const;
+
+  int cell_px() const { return cell_px_; }
+  int cells_x() const { return cells_x_; }
+  int cells_y() const { return cells_y_; }
+
+ private:
+  int cell_of(float x, float y) const;
+  std::vector<std::int32_t> cell_start_;  // cells + 1 entries
+  std::vector<std::int32_t> cell_fill_;   // scratch while building
+  std::vector<std::int32_t> items_;       // keypoint indices by cell (kMaxKeypoints)
+  int cell_px_ = 16, cells_x_ = 0, cells_y_ = 0;
+};
+
+}  // namespace st

@@ -1,0 +1,281 @@
+#include "core/orb_extractor.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace st {
+namespace {
+
+constexpr int kBlock = 16;  // level-0 block size of the coarse mask map (= FAST chunk width)
+
+int ceil_div(int a, int b) { return (a + b - 1) / b; }
+
+// Level pixel -> level-0 pixel (pixel centres at integers).
+inline float to_level0(float v, float scale) { return (v + 0.5f) * scale - 0.5f; }
+
+// Level-0 pixel -> mask pixel for a mask of mask_n pixels over image_n.
+inline int to_mask(float v0, int mask_n, int image_n) {
+  const int m = static_cast<int>(std::floor((v0 + 0.5f) * static_cast<float>(mask_n) /
+                                            static_cast<float>(image_n)));
+  return m;
+}
+
+// Marks every 16x16 level-0 block touched by a non-zero pixel of mask.
+void mark_blocks(GrayView mask, int width, int height, int blocks_x, std::uint8_t* blocks) {
+  for (int my = 0; my < mask.height; ++my) {
+    const std::uint8_t* row = mask.row(my);
+    const int y0 = static_cast<int>(static_cast<std::int64_t>(my) * height / mask.height) / kBlock;
+    const int y1 = static_cast<int>((static_cast<std::int64_t>(my + 1) * height - 1) / mask.height) / kBlock;
+    for (int mx = 0; mx < mask.width; ++mx) {
+      if (!row[mx]) continue;
+      const int x0 = static_cast<int>(static_cast<std::int64_t>(mx) * width / mask.width) / kBlock;
+      const int x1 = static_cast<int>((static_cast<std::int64_t>(mx + 1) * width - 1) / mask.width) / kBlock;
+      for (int by = y0; by <= y1; ++by)
+        for (int bx = x0; bx <= x1; ++bx) blocks[by * blocks_x + bx] = 1;
+    }
+  }
+}
+
+}  // namespace
+
+Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
+  if (c.n_features < 1 || c.n_features > kMaxKeypoints)
+    return make_error("OrbConfig.n_features " + std::to_string(c.n_features) + " outside [1, " +
+                      std::to_string(kMaxKeypoints) + "] (core/capacity.h kMaxKeypoints)");
+  if (c.fast_threshold_relaxed < 1 || c.fast_threshold_strict > 254 ||
+      c.fast_threshold_relaxed > c.fast_threshold_strict)
+    return make_error("OrbConfig: need 1 <= fast_threshold_relaxed <= fast_threshold_strict <= 254");
+  if (c.threshold_cell_px < 8 || c.min_spread_cell_px < 2 || c.spread_cell_keypoints < 1 ||
+      c.spread_cell_keypoints > 1024)
+    return make_error("OrbConfig: threshold_cell_px must be >= 8, min_spread_cell_px >= 2, "
+                      "spread_cell_keypoints in [1, 1024]");
+  if (c.edge_border_px < kOrbPatchRadius + 1 || c.edge_border_px > 64)
+    return make_error("OrbConfig.edge_border_px must be in [16, 64] (descriptor patch radius 15)");
+  if (c.organ_margin_px < 0 || c.organ_margin_px > 256)
+    return make_error("OrbConfig.organ_margin_px must be in [0, 256]");
+  if (Status s = pyramid_.configure(width, height, c.levels, c.scale_factor); !s) return s;
+  if (Status s = fast_.configure(width); !s) return s;
+  config_ = c;
+  width_ = width;
+  height_ = height;
+  // Targets per level fall geometrically with 1/scale_factor (as cv::ORB).
+  const double f = 1.0 / static_cast<double>(c.scale_factor);
+  double per_level = c.n_features * (1.0 - f) / (1.0 - std::pow(f, c.levels));
+  int total = 0;
+  for (int k = 0; k < c.levels - 1; ++k) {
+    level_target_[k] = static_cast<int>(std::lround(per_level));
+    total += level_target_[k];
+    per_level *= f;
+  }
+  level_target_[c.levels - 1] = std::max(c.n_features - total, 0);
+  // 3x3 suppression keeps at most one corner per 2x2 pixels.
+  const std::size_t cap = static_cast<std::size_t>(width) * height / 4 + 64;
+  fast_out_.assign(cap, FastCorner{});
+  cand_.assign(cap, Candidate{});
+  cell_has_strict_.assign(static_cast<std::size_t>(ceil_div(width, c.threshold_cell_px) + 1) *
+                              (ceil_div(height, c.threshold_cell_px) + 1), 0);
+  organ_dilated_.assign(static_cast<std::size_t>(width) * height, 0);
+  organ_tmp_.assign(static_cast<std::size_t>(width) * height, 0);
+  blocks_x_ = ceil_div(width, kBlock);
+  blocks_y_ = ceil_div(height, kBlock);
+  block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 2, 0);
+  chunk_ok_.assign(static_cast<std::size_t>(height) * (ceil_div(width, kBlock) + 1), 0);
+  return Status::Ok();
+}
+
+void OrbExtractor::prepare_masks(GrayView organ, GrayView valid) {
+  organ_ = GrayView();
+  valid_ = valid.empty() ? GrayView() : valid;
+  if (!organ.empty()) {
+    const int r = ceil_div(config_.organ_margin_px * organ.width, width_);
+    if (r > 0 && organ.width <= width_ && organ.height <= height_) {
+      dilate_binary(organ, r, organ_dilated_.data(), organ_tmp_.data());
+      organ_ = GrayView(organ_dilated_.data(), organ.width, organ.height, organ.width);
+    } else {
+      organ_ = organ;
+    }
+  }
+  use_chunks_ = !organ_.empty() || !valid_.empty();
+  allowed_fraction_ = 1.f;
+  if (!use_chunks_) return;
+  const std::size_t nb = static_cast<std::size_t>(blocks_x_) * blocks_y_;
+  std::uint8_t* b_organ = block_ok_.data();
+  std::uint8_t* b_valid = block_ok_.data() + nb;
+  std::fill(b_organ, b_organ + nb, organ_.empty() ? 1 : 0);
+  std::fill(b_valid, b_valid + nb, valid_.empty() ? 1 : 0);
+  if (!organ_.empty()) mark_blocks(organ_, width_, height_, blocks_x_, b_organ);
+  if (!valid_.empty()) mark_blocks(valid_, width_, height_, blocks_x_, b_valid);
+  int allowed = 0;
+  for (std::size_t i = 0; i < nb; ++i) {
+    b_organ[i] = static_cast<std::uint8_t>(b_organ[i] & b_valid[i]);
+    allowed += b_organ[i];
+  }
+  allowed_fraction_ = static_cast<float>(allowed) / static_cast<float>(nb);
+}
+
+void OrbExtractor::build_chunk_map(int level) {
+  const GrayView img = pyramid_.level(level);
+  const float s = pyramid_.scale(level);
+  const int chunks = ceil_div(img.width, kBlock);
+  const std::uint8_t* blocks = block_ok_.data();
+  for (int y = 0; y < img.height; ++y) {
+    const int by = std::clamp(static_cast<int>(to_level0(static_cast<float>(y), s)) / kBlock, 0,
+                              blocks_y_ - 1);
+    std::uint8_t* row = chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+    const std::uint8_t* brow = blocks + static_cast<std::ptrdiff_t>(by) * blocks_x_;
+    for (int cx = 0; cx < chunks; ++cx) {
+      const int bx0 = std::clamp(static_cast<int>(to_level0(static_cast<float>(cx * kBlock), s)) / kBlock, 0, blocks_x_ - 1);
+      const int bx1 = std::clamp(static_cast<int>(to_level0(static_cast<float>(cx * kBlock + kBlock - 1), s)) / kBlock, 0, blocks_x_ - 1);
+      std::uint8_t any = 0;
+      for (int bx = bx0; bx <= bx1; ++bx) any |= brow[bx];
+      row[cx] = any;
+    }
+  }
+}
+
+bool OrbExtractor::inside_masks(int level, int x, int y) const {
+  const float s = pyramid_.scale(level);
+  const float X = to_level0(static_cast<float>(x), s), Y = to_level0(static_cast<float>(y), s);
+  if (!organ_.empty()) {
+    const int mx = to_mask(X, organ_.width, width_), my = to_mask(Y, organ_.height, height_);
+    if (!organ_.contains(mx, my) || !organ_(mx, my)) return false;
+  }
+  if (!valid_.empty()) {
+    // The centre and the 16 pixels of the FAST circle must all be valid.
+    static constexpr int kDx[17] = {0, 0, 1, 2, 3, 3, 3, 2, 1, 0, -1, -2, -3, -3, -3, -2, -1};
+    static constexpr int kDy[17] = {0, -3, -3, -2, -1, 0, 1, 2, 3, 3, 3, 2, 1, 0, -1, -2, -3};
+    for (int i = 0; i < 17; ++i) {
+      const int mx = to_mask(X + static_cast<float>(kDx[i]) * s, valid_.width, width_);
+      const int my = to_mask(Y + static_cast<float>(kDy[i]) * s, valid_.height, height_);
+      if (!valid_.contains(mx, my) || !valid_(mx, my)) return false;
+    }
+  }
+  return true;
+}
+
+int OrbExtractor::filter_candidates(int level, int n_fast) {
+  const GrayView img = pyramid_.level(level);
+  const int cell = config_.threshold_cell_px;
+  const int cells_x = ceil_div(img.width, cell);
+  const std::size_t ncells = static_cast<std::size_t>(cells_x) * ceil_div(img.height, cell);
+  std::fill(cell_has_strict_.begin(), cell_has_strict_.begin() + static_cast<std::ptrdiff_t>(ncells), 0);
+  int n = 0;
+  for (int i = 0; i < n_fast; ++i) {
+    const FastCorner& c = fast_out_[static_cast<std::size_t>(i)];
+    if (use_chunks_ && !inside_masks(level, c.x, c.y)) continue;
+    const std::uint32_t ci = static_cast<std::uint32_t>((c.y / cell) * cells_x + c.x / cell);
+    if (c.score > config_.fast_threshold_strict) cell_has_strict_[ci] = 1;
+    cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score, 0};
+  }
+  stats_.masked_corners += n;
+  int kept = 0;
+  for (int i = 0; i < n; ++i) {
+    const Candidate& c = cand_[static_cast<std::size_t>(i)];
+    if (c.score > config_.fast_threshold_strict || !cell_has_strict_[c.cell])
+      cand_[static_cast<std::size_t>(kept++)] = c;
+  }
+  stats_.kept_corners += kept;
+  return kept;
+}
+
+int OrbExtractor::spread(int level, int n, int target) {
+  if (n <= target) return n;
+  const GrayView img = pyramid_.level(level);
+  const float area = static_cast<float>(img.width) * static_cast<float>(img.height) * allowed_fraction_;
+  const int cell = std::max(config_.min_spread_cell_px,
+                            static_cast<int>(std::sqrt(area * static_cast<float>(config_.spread_cell_keypoints) /
+                                                             static_cast<float>(target))));
+  const int cells_x = ceil_div(img.width, cell);
+  Candidate* c = cand_.data();
+  for (int i = 0; i < n; ++i) c[i].cell = static_cast<std::uint32_t>((c[i].y / cell) * cells_x + c[i].x / cell);
+  std::sort(c, c + n, [](const Candidate& a, const Candidate& b) {
+    return a.cell != b.cell ? a.cell < b.cell : a.key > b.key;
+  });
+  // Rank inside each cell; count how many corners each rank holds.
+  int rank_count[256] = {};
+  for (int i = 0; i < n; ++i) {
+    const int r = (i > 0 && c[i].cell == c[i - 1].cell) ? std::min(c[i - 1].rank + 1, 255) : 0;
+    c[i].rank = static_cast<std::uint8_t>(r);
+    ++rank_count[r];
+  }
+  int full_ranks = 0, taken = 0;  // ranks taken whole
+  while (full_ranks < 256 && taken + rank_count[full_ranks] <= target) taken += rank_count[full_ranks++];
+  // Keep ranks < full_ranks; then the strongest of rank full_ranks fill up.
+  auto* split = std::partition(c, c + n, [&](const Candidate& a) { return a.rank < full_ranks; });
+  auto* rest_end = std::partition(split, c + n, [&](const Candidate& a) { return a.rank == full_ranks; });
+  const int fill = std::min<int>(target - taken, static_cast<int>(rest_end - split));
+  if (fill > 0 && fill < rest_end - split)
+    std::nth_element(split, split + fill, rest_end,
+                     [](const Candidate& a, const Candidate& b) { return a.key > b.key; });
+  return taken + std::max(fill, 0);
+}
+
+// Harris corner response (k = 0.04) over a 7x7 window of central-difference
+// gradients on the level image; candidates are >= 16 pixels inside.
+void OrbExtractor::harris_keys(int level, int n) {
+  const GrayView img = pyramid_.level(level);
+  const std::ptrdiff_t st = img.stride;
+  for (int i = 0; i < n; ++i) {
+    Candidate& c = cand_[static_cast<std::size_t>(i)];
+    std::int64_t sxx = 0, syy = 0, sxy = 0;
+    for (int dy = -3; dy <= 3; ++dy) {
+      const std::uint8_t* p = img.row(c.y + dy) + c.x;
+      for (int dx = -3; dx <= 3; ++dx) {
+        const int gx = p[dx + 1] - p[dx - 1];
+        const int gy = p[dx + st] - p[dx - st];
+        sxx += gx * gx;
+        syy += gy * gy;
+        sxy += gx * gy;
+      }
+    }
+    const double a = static_cast<double>(sxx), b = static_cast<double>(syy), d = static_cast<double>(sxy);
+    c.key = static_cast<float>(a * b - d * d - 0.04 * (a + b) * (a + b));
+  }
+}
+
+void OrbExtractor::describe(int level, int n, FeatureSet& out) {
+  const GrayView img = pyramid_.level(level);
+  const GrayView smooth = pyramid_.smoothed(level);
+  const float s = pyramid_.scale(level);
+  for (int i = 0; i < n && out.count < kMaxKeypoints; ++i) {
+    const Candidate& c = cand_[static_cast<std::size_t>(i)];
+    Keypoint& kp = out.keypoints[static_cast<std::size_t>(out.count)];
+    kp.x = to_level0(static_cast<float>(c.x), s);
+    kp.y = to_level0(static_cast<float>(c.y), s);
+    kp.octave = level;
+    kp.response = static_cast<float>(c.score);
+    kp.angle_deg = OrbDescriptor::orientation_deg(img, c.x, c.y);
+    descriptor_.compute(smooth, c.x, c.y, kp.angle_deg,
+                        out.descriptors[static_cast<std::size_t>(out.count)].data());
+    ++out.count;
+    ++out.per_level[static_cast<std::size_t>(level)];
+  }
+}
+
+bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_mask, FeatureSet& out) {
+  out.clear();
+  stats_ = OrbFrameStats{};
+  if (!pyramid_.build(image)) return false;
+  out.width = width_;
+  out.height = height_;
+  prepare_masks(organ_mask, valid_mask);
+  for (int k = 0; k < pyramid_.levels(); ++k) {
+    const GrayView img = pyramid_.level(k);
+    if (img.width <= 2 * config_.edge_border_px || img.height <= 2 * config_.edge_border_px) continue;
+    if (use_chunks_) build_chunk_map(k);
+    const int n_fast = fast_.detect(img, config_.fast_threshold_relaxed, config_.edge_border_px,
+                                    use_chunks_ ? chunk_ok_.data() : nullptr,
+                                    ceil_div(img.width, kBlock), fast_out_.data(),
+                                    static_cast<int>(fast_out_.size()));
+    stats_.fast_corners += n_fast;
+    const int n_kept = filter_candidates(k, n_fast);
+    const int n_pre = spread(k, n_kept, 2 * level_target_[k]);
+    harris_keys(k, n_pre);
+    const int n_spread = spread(k, n_pre, level_target_[k]);
+    describe(k, n_spread, out);
+  }
+  return true;
+}
+
+}  // namespace st

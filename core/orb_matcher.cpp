@@ -1,0 +1,155 @@
+#include "core/orb_matcher.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+
+#include "core/capacity.h"
+
+namespace st {
+
+int hamming256(const std::uint8_t* a, const std::uint8_t* b) {
+  int d = 0;
+  for (int i = 0; i < 4; ++i) {
+    std::uint64_t x, y;
+    std::memcpy(&x, a + 8 * i, 8);
+    std::memcpy(&y, b + 8 * i, 8);
+    d += std::popcount(x ^ y);
+  }
+  return d;
+}
+
+Status OrbMatcher::configure(const MatchConfig& c) {
+  if (c.max_distance < 0 || c.max_distance > 256) return make_error("MatchConfig.max_distance must be in [0, 256]");
+  if (!(c.ratio > 0.f && c.ratio <= 1.f)) return make_error("MatchConfig.ratio must be in (0, 1]");
+  if (c.rotation_bins < 3 || c.rotation_bins > 360) return make_error("MatchConfig.rotation_bins must be in [3, 360]");
+  if (c.octave_window < 0 || c.octave_window > kMaxPyramidLevels) return make_error("MatchConfig.octave_window must be in [0, kMaxPyramidLevels]");
+  config_ = c;
+  const std::size_t n = std::max<std::size_t>(kMaxMapPoints, kMaxKeypoints);
+  claimed_by_.assign(kMaxKeypoints, -1);
+  claim_dist_.assign(kMaxKeypoints, 0);
+  candidates_.assign(kMaxKeypoints, 0);
+  dist_scratch_.assign(n, 0);
+  ref_angles_.assign(n, -1.f);
+  rot_bin_count_.assign(static_cast<std::size_t>(c.rotation_bins), 0);
+  return Status::Ok();
+}
+
+// The closer claim on a keypoint wins; the loser's match is cleared.
+bool OrbMatcher::claim(int point, int keypoint, int distance, int* match_of_point, int* distance_of_point) {
+  const std::size_t k = static_cast<std::size_t>(keypoint);
+  const int holder = claimed_by_[k];
+  if (holder >= 0) {
+    if (claim_dist_[k] <= distance) return false;
+    match_of_point[holder] = -1;
+  }
+  claimed_by_[k] = point;
+  claim_dist_[k] = distance;
+  match_of_point[point] = keypoint;
+  distance_of_point[point] = distance;
+  return true;
+}
+
+void OrbMatcher::orientation_filter(const float* ref_angle, const FeatureSet& frame, int n, int* match) {
+  if (!config_.check_orientation) return;
+  const int bins = config_.rotation_bins;
+  std::fill(rot_bin_count_.begin(), rot_bin_count_.end(), 0);
+  auto bin_of = [&](int i) {
+    float rot = frame.keypoints[static_cast<std::size_t>(match[i])].angle_deg - ref_angle[i];
+    rot = std::fmod(rot + 720.f, 360.f);
+    return std::min(static_cast<int>(rot * static_cast<float>(bins) / 360.f), bins - 1);
+  };
+  for (int i = 0; i < n; ++i)
+    if (match[i] >= 0 && ref_angle[i] >= 0.f) ++rot_bin_count_[static_cast<std::size_t>(bin_of(i))];
+  int top[3] = {-1, -1, -1};
+  for (int b = 0; b < bins; ++b) {
+    const int c = rot_bin_count_[static_cast<std::size_t>(b)];
+    if (c == 0) continue;
+    if (top[0] < 0 || c > rot_bin_count_[static_cast<std::size_t>(top[0])]) { top[2] = top[1]; top[1] = top[0]; top[0] = b; }
+    else if (top[1] < 0 || c > rot_bin_count_[static_cast<std::size_t>(top[1])]) { top[2] = top[1]; top[1] = b; }
+    else if (top[2] < 0 || c > rot_bin_count_[static_cast<std::size_t>(top[2])]) { top[2] = b; }
+  }
+  if (top[0] < 0) return;
+  const int best = rot_bin_count_[static_cast<std::size_t>(top[0])];
+  for (int j = 1; j < 3; ++j)
+    if (top[j] >= 0 && rot_bin_count_[static_cast<std::size_t>(top[j])] * 10 < best) top[j] = -1;
+  for (int i = 0; i < n; ++i) {
+    if (match[i] < 0 || ref_angle[i] < 0.f) continue;
+    const int b = bin_of(i);
+    if (b != top[0] && b != top[1] && b != top[2]) {
+      if (match[i] >= 0) claimed_by_[static_cast<std::size_t>(match[i])] = -1;
+      match[i] = -1;
+      ++stats_.orientation_rejected;
+    }
+  }
+}
+
+int OrbMatcher::search_by_projection(const ProjectedPoint* points, int n, const FeatureSet& frame,
+                                     const FeatureGrid& grid, int* match, int* distance) {
+  stats_ = MatchStats{};
+  n = std::clamp(n, 0, kMaxMapPoints);
+  if (!distance) distance = dist_scratch_.data();
+  std::fill(claimed_by_.begin(), claimed_by_.begin() + std::clamp(frame.count, 0, kMaxKeypoints), -1);
+  for (int i = 0; i < n; ++i) {
+    const ProjectedPoint& p = points[i];
+    match[i] = -1;
+    distance[i] = 256;
+    ref_angles_[static_cast<std::size_t>(i)] = p.ref_angle_deg;
+    const int lo = p.predicted_octave < 0 ? -1 : std::max(0, p.predicted_octave - config_.octave_window);
+    const int hi = p.predicted_octave < 0 ? -1 : p.predicted_octave + config_.octave_window;
+    const int nc = grid.query(frame, p.x, p.y, p.radius_px, lo, hi, candidates_.data(), kMaxKeypoints);
+    int best = 257, second = 257, best_k = -1;
+    for (int j = 0; j < nc; ++j) {
+      const int k = candidates_[static_cast<std::size_t>(j)];
+      const int d = hamming256(p.descriptor.data(), frame.descriptors[static_cast<std::size_t>(k)].data());
+      if (d < best) { second = best; best = d; best_k = k; }
+      else if (d < second) { second = d; }
+    }
+    stats_.candidates += nc;
+    if (best_k < 0 || best > config_.max_distance) continue;
+    if (second <= 256 && static_cast<float>(best) >= config_.ratio * static_cast<float>(second)) {
+      ++stats_.ratio_rejected;
+      continue;
+    }
+    claim(i, best_k, best, match, distance);
+  }
+  orientation_filter(ref_angles_.data(), frame, n, match);
+  int count = 0;
+  for (int i = 0; i < n; ++i) count += match[i] >= 0 ? 1 : 0;
+  stats_.matched = count;
+  return count;
+}
+
+int OrbMatcher::match_brute_force(const FeatureSet& query, const FeatureSet& train, int* match, int* distance) {
+  stats_ = MatchStats{};
+  const int nq = std::clamp(query.count, 0, kMaxKeypoints), nt = std::clamp(train.count, 0, kMaxKeypoints);
+  if (!distance) distance = dist_scratch_.data();
+  std::fill(claimed_by_.begin(), claimed_by_.begin() + nt, -1);
+  for (int i = 0; i < nq; ++i) {
+    match[i] = -1;
+    distance[i] = 256;
+    ref_angles_[static_cast<std::size_t>(i)] = query.keypoints[static_cast<std::size_t>(i)].angle_deg;
+    const std::uint8_t* q = query.descriptors[static_cast<std::size_t>(i)].data();
+    int best = 257, second = 257, best_k = -1;
+    for (int k = 0; k < nt; ++k) {
+      const int d = hamming256(q, train.descriptors[static_cast<std::size_t>(k)].data());
+      if (d < best) { second = best; best = d; best_k = k; }
+      else if (d < second) { second = d; }
+    }
+    stats_.candidates += nt;
+    if (best_k < 0 || best > config_.max_distance) continue;
+    if (second <= 256 && static_cast<float>(best) >= config_.ratio * static_cast<float>(second)) {
+      ++stats_.ratio_rejected;
+      continue;
+    }
+    claim(i, best_k, best, match, distance);
+  }
+  orientation_filter(ref_angles_.data(), train, nq, match);
+  int count = 0;
+  for (int i = 0; i < nq; ++i) count += match[i] >= 0 ? 1 : 0;
+  stats_.matched = count;
+  return count;
+}
+
+}  // namespace st

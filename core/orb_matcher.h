@@ -1,0 +1,82 @@
+// ORB descriptor matching: Hamming distance, search by projection through a
+// FeatureGrid (tracking), brute force (relocalisation). Both apply the
+// best / second-best ratio test, keep at most one match per frame keypoint
+// (the closer claim wins), and can apply ORB-SLAM's orientation consistency
+// check: a histogram of (frame angle - reference angle) in rotation_bins
+// bins keeps only matches in the three fullest bins (a bin must hold at
+// least 10% of the fullest to count).
+//
+// configure() allocates the scratch (kMaxMapPoints / kMaxKeypoints);
+// matching allocates nothing. Tracking thread (one instance per thread).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/feature_grid.h"
+#include "core/feature_set.h"
+#include "core/result.h"
+
+namespace st {
+
+// Hamming distance of two 32-byte descriptors (portable popcount).
+int hamming256(const std::uint8_t* a, const std::uint8_t* b);
+
+struct MatchConfig {
+  int max_distance = 100;       // reject matches with a larger Hamming distance (of 256 bits)
+  float ratio = 0.8f;           // best < ratio * second best (1 disables)
+  bool check_orientation = true;
+  int rotation_bins = 30;       // 12 degrees per bin
+  int octave_window = 1;        // search by projection: predicted octave +- this
+};
+
+// A map point projected into the current frame (level-0 pixels).
+struct ProjectedPoint {
+  float x = 0.f, y = 0.f;
+  float radius_px = 0.f;       // search radius, level-0 pixels (scale it by the predicted octave's scale)
+  int predicted_octave = -1;   // -1: any octave
+  float ref_angle_deg = -1.f;  // angle of the observation the descriptor came from; < 0: skip the orientation check
+  Descriptor descriptor{};
+};
+
+struct MatchStats {
+  int candidates = 0;          // descriptor comparisons
+  int ratio_rejected = 0;
+  int orientation_rejected = 0;
+  int matched = 0;
+};
+
+class OrbMatcher {
+ public:
+  Status configure(const MatchConfig& config);
+
+  // For each of n points (n <= kMaxMapPoints), the index of its matching
+  // keypoint in frame, or -1, into match_of_point[n] (distances into
+  // distance_of_point[n] if not null). grid must be built on frame.
+  // Returns the number of matches.
+  int search_by_projection(const ProjectedPoint* points, int n, const FeatureSet& frame,
+                           const FeatureGrid& grid, int* match_of_point, int* distance_of_point);
+
+  // For each keypoint of query, the index of its match in train or -1, into
+  // match_of_query[query.count]. Orientation check uses both sets' angles.
+  int match_brute_force(const FeatureSet& query, const FeatureSet& train, int* match_of_query,
+                        int* distance_of_query);
+
+  const MatchConfig& config() const { return config_; }
+  const MatchStats& stats() const { return stats_; }
+
+ private:
+  bool claim(int point, int keypoint, int distance, int* match_of_point, int* distance_of_point);
+  void orientation_filter(const float* ref_angle, const FeatureSet& frame, int n,
+                          int* match_of_point);
+  MatchConfig config_;
+  MatchStats stats_;
+  std::vector<std::int32_t> claimed_by_;     // per frame keypoint: point index or -1
+  std::vector<std::int32_t> claim_dist_;
+  std::vector<std::int32_t> candidates_;     // grid query scratch
+  std::vector<std::int32_t> dist_scratch_;   // distances when the caller passes none
+  std::vector<float> ref_angles_;            // per point / query keypoint
+  std::vector<std::int32_t> rot_bin_count_;
+};
+
+}  // namespace st

@@ -1,0 +1,129 @@
+#include "core/valid_mask.h"
+
+#include <algorithm>
+#include <string>
+
+#include "core/mask_ops.h"
+
+namespace st {
+
+Status ValidMaskBuilder::configure(const ValidMaskConfig& c, int width, int height) {
+  if (c.downscale != 1 && c.downscale != 2 && c.downscale != 4)
+    return make_error("ValidMaskConfig.downscale must be 1, 2 or 4");
+  if (width < 16 || height < 16 || width > 4096 || height > 4096)
+    return make_error("ValidMaskBuilder: frame size " + std::to_string(width) + "x" +
+                      std::to_string(height) + " outside [16, 4096]");
+  if (c.border_margin_px < 0 || c.highlight_dilate_px < 0 || c.black_offset < 0 ||
+      c.highlight_band < 0 || c.highlight_min < 0 || c.highlight_min > 255)
+    return make_error("ValidMaskConfig: margins, offsets and bands must be >= 0, highlight_min <= 255");
+  config_ = c;
+  width_ = width;
+  height_ = height;
+  mask_w_ = width / c.downscale;
+  mask_h_ = height / c.downscale;
+  const std::size_t n = static_cast<std::size_t>(mask_w_) * mask_h_;
+  mean_.assign(n, 0);
+  max_.assign(n, 0);
+  sat_.assign(n, 0);
+  sat_tmp_.assign(n, 0);
+  sat_dil_.assign(n, 0);
+  mask_.assign(n, 0);
+  for (auto* v : {&first_, &last_, &efirst_, &elast_}) v->assign(static_cast<std::size_t>(mask_h_), 0);
+  return Status::Ok();
+}
+
+// Block mean (for black) and block max (for saturation) at mask resolution.
+void ValidMaskBuilder::downsample(GrayView frame) {
+  const int d = config_.downscale;
+  const int area = d * d;
+  for (int my = 0; my < mask_h_; ++my) {
+    std::uint8_t* mean = mean_.data() + static_cast<std::ptrdiff_t>(my) * mask_w_;
+    std::uint8_t* mx = max_.data() + static_cast<std::ptrdiff_t>(my) * mask_w_;
+    for (int x = 0; x < mask_w_; ++x) {
+      int sum = 0, m = 0;
+      for (int dy = 0; dy < d; ++dy) {
+        const std::uint8_t* r = frame.row(my * d + dy) + x * d;
+        for (int dx = 0; dx < d; ++dx) {
+          sum += r[dx];
+          m = std::max<int>(m, r[dx]);
+        }
+      }
+      mean[x] = static_cast<std::uint8_t>((sum + area / 2) / area);
+      mx[x] = static_cast<std::uint8_t>(m);
+    }
+  }
+}
+
+// Per row: first and last non-black mask pixel, then erosion of the spans by
+// the margin in both directions (a row's span shrinks to the intersection of
+// its neighbours' spans, moved inwards).
+void ValidMaskBuilder::field_stop_spans() {
+  // Black level: 2nd percentile of block means (the border is a large share
+  // of a scope frame; if the frame has none, the level is dark tissue and
+  // black_max stops us from cutting it).
+  int hist[256] = {};
+  for (std::uint8_t v : mean_) ++hist[v];
+  const std::size_t target = mean_.size() / 50;
+  std::size_t acc = 0;
+  int level = 0;
+  while (level < 255 && acc + static_cast<std::size_t>(hist[level]) <= target) acc += static_cast<std::size_t>(hist[level++]);
+  black_level_ = level;
+  const bool has_border = level <= config_.black_max;
+  const int thr = level + config_.black_offset;
+  for (int y = 0; y < mask_h_; ++y) {
+    const std::uint8_t* r = mean_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
+    int f = 0, l = mask_w_ - 1;
+    if (has_border) {
+      // The image starts where kRun mask pixels in a row are not black:
+      // isolated compression noise in the border does not count.
+      constexpr int kRun = 4;
+      int run = 0;
+      for (f = 0; f < mask_w_ && run < kRun; ++f) run = r[f] > thr ? run + 1 : 0;
+      f = run == kRun ? f - kRun : mask_w_;
+      run = 0;
+      for (l = mask_w_ - 1; l >= f && run < kRun; --l) run = r[l] > thr ? run + 1 : 0;
+      l = run == kRun ? l + kRun : -1;
+    }
+    first_[static_cast<std::size_t>(y)] = f;
+    last_[static_cast<std::size_t>(y)] = l;  // empty row: last < first
+  }
+  const int m = has_border ? (config_.border_margin_px + config_.downscale - 1) / config_.downscale : 0;
+  for (int y = 0; y < mask_h_; ++y) {
+    int f = 0, l = mask_w_ - 1;
+    for (int yy = y - m; yy <= y + m; ++yy) {
+      if (yy < 0 || yy >= mask_h_) {
+        if (has_border) { f = mask_w_; l = -1; }  // beyond the frame counts as border
+        continue;
+      }
+      f = std::max(f, first_[static_cast<std::size_t>(yy)] + m);
+      l = std::min(l, last_[static_cast<std::size_t>(yy)] - m);
+    }
+    efirst_[static_cast<std::size_t>(y)] = f;
+    elast_[static_cast<std::size_t>(y)] = l;
+  }
+}
+
+GrayView ValidMaskBuilder::build(GrayView frame) {
+  if (frame.empty() || frame.width != width_ || frame.height != height_) return GrayView();
+  downsample(frame);
+  field_stop_spans();
+  int frame_max = 0;
+  for (std::uint8_t v : max_) frame_max = std::max<int>(frame_max, v);
+  highlight_thr_ = std::max(config_.highlight_min, frame_max - config_.highlight_band);
+  highlight_pixels_ = 0;
+  for (std::size_t i = 0; i < max_.size(); ++i) {
+    sat_[i] = max_[i] >= highlight_thr_ ? 255 : 0;
+    highlight_pixels_ += sat_[i] ? 1 : 0;
+  }
+  const int r = (config_.highlight_dilate_px + config_.downscale - 1) / config_.downscale;
+  dilate_binary(GrayView(sat_.data(), mask_w_, mask_h_), r, sat_dil_.data(), sat_tmp_.data());
+  for (int y = 0; y < mask_h_; ++y) {
+    std::uint8_t* out = mask_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
+    const std::uint8_t* sat = sat_dil_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
+    const int f = efirst_[static_cast<std::size_t>(y)], l = elast_[static_cast<std::size_t>(y)];
+    for (int x = 0; x < mask_w_; ++x) out[x] = (x >= f && x <= l && !sat[x]) ? 255 : 0;
+  }
+  return mask();
+}
+
+}  // namespace st

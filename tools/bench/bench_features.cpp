@@ -1,0 +1,102 @@
+// Stage "features": our ORB frontend (valid mask + extract, 1500 keypoints,
+// 8 levels x 1.2) against cv::ORB (1500 features, 8 levels, 1.2, one
+// thread) on the same 1280x720 frames made from the real frame (resized,
+// rotated, scaled, perspective-warped), in the same run.
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "bench.h"
+#include "core/orb_extractor.h"
+#include "core/valid_mask.h"
+
+namespace {
+
+// Luma of the one-frame Y4M (stopgap until the shared parser lands).
+cv::Mat read_luma(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::size_t eol = bytes.find('\n');
+  if (bytes.rfind("YUV4MPEG2 ", 0) != 0 || eol == std::string::npos) return {};
+  const std::size_t w_at = bytes.find(" W"), h_at = bytes.find(" H");
+  if (w_at > eol || h_at > eol) return {};
+  const int w = std::atoi(bytes.c_str() + w_at + 2), h = std::atoi(bytes.c_str() + h_at + 2);
+  const std::size_t y0 = eol + 7;  // "FRAME\n"
+  if (w <= 0 || h <= 0 || bytes.size() < y0 + static_cast<std::size_t>(w) * h) return {};
+  cv::Mat y(h, w, CV_8UC1);
+  std::memcpy(y.data, bytes.data() + y0, static_cast<std::size_t>(w) * h);
+  return y;
+}
+
+std::vector<cv::Mat> make_frames(const cv::Mat& full, int n) {
+  cv::Mat base;
+  cv::resize(full, base, cv::Size(1280, 720), 0, 0, cv::INTER_AREA);
+  std::vector<cv::Mat> frames;
+  for (int i = 0; i < n; ++i) {
+    const double a = (i % 7 - 3) * 4.0 * CV_PI / 180.0, s = 1.0 + 0.04 * (i % 5 - 2);
+    const double px = 1e-4 * (i % 3 - 1);
+    const cv::Matx33d T1(1, 0, -640, 0, 1, -360, 0, 0, 1), T2(1, 0, 640, 0, 1, 360, 0, 0, 1);
+    const cv::Matx33d RS(s * std::cos(a), -s * std::sin(a), 0, s * std::sin(a), s * std::cos(a), 0, px, 0, 1);
+    cv::Mat out;
+    cv::warpPerspective(base, out, T2 * RS * T1, base.size(), cv::INTER_LINEAR, cv::BORDER_CONSTANT, 0);
+    frames.push_back(out);
+  }
+  return frames;
+}
+
+int bench_features(const st::bench::Options& opt) {
+  const cv::Mat full = read_luma(opt.shared_dir + "/data/real/laparoscopy_liver_1080p.y4m");
+  if (full.empty()) {
+    std::fprintf(stderr, "features: cannot read the real frame under %s\n", opt.shared_dir.c_str());
+    return 1;
+  }
+  cv::setNumThreads(1);
+  const int iterations = opt.iterations > 0 ? opt.iterations : 60;
+  const std::vector<cv::Mat> frames = make_frames(full, 12);
+  st::OrbExtractor orb;
+  st::ValidMaskBuilder valid;
+  if (!orb.configure(st::OrbConfig{}, 1280, 720) || !valid.configure(st::ValidMaskConfig{}, 1280, 720)) return 1;
+  auto features = std::make_unique<st::FeatureSet>();
+  cv::Ptr<cv::ORB> cv_orb = cv::ORB::create(1500, 1.2f, 8);
+  std::vector<cv::KeyPoint> kps;
+  cv::Mat desc;
+  std::vector<double> ours_ms, ours_extract_ms, mask_ms, cv_ms;
+  double n_ours = 0, n_cv = 0;
+  for (int i = -3; i < iterations; ++i) {  // 3 warm-up rounds
+    const cv::Mat& f = frames[static_cast<std::size_t>((i + 3) % static_cast<int>(frames.size()))];
+    const st::GrayView view(f.ptr<std::uint8_t>(0), f.cols, f.rows, static_cast<std::ptrdiff_t>(f.step[0]));
+    const double t0 = st::bench::now_ms();
+    const st::GrayView vm = valid.build(view);
+    const double t1 = st::bench::now_ms();
+    orb.extract(view, st::GrayView(), vm, *features);
+    const double t2 = st::bench::now_ms();
+    cv_orb->detectAndCompute(f, cv::noArray(), kps, desc);
+    const double t3 = st::bench::now_ms();
+    if (i < 0) continue;
+    mask_ms.push_back(t1 - t0);
+    ours_extract_ms.push_back(t2 - t1);
+    ours_ms.push_back(t2 - t0);
+    cv_ms.push_back(t3 - t2);
+    n_ours += features->count;
+    n_cv += static_cast<double>(kps.size());
+  }
+  char note[160];
+  std::snprintf(note, sizeof note, "1280x720, mean keypoints: ours %.0f, cv::ORB %.0f", n_ours / iterations,
+                n_cv / iterations);
+  st::bench::report(opt, {"features.orb_frontend (mask+extract)", ours_ms, "cv::ORB detectAndCompute", cv_ms, note});
+  st::bench::report(opt, {"features.orb_extract", ours_extract_ms, "", {}, ""});
+  st::bench::report(opt, {"features.valid_mask", mask_ms, "", {}, ""});
+  return 0;
+}
+
+}  // namespace
+
+SCOPETRACK_BENCH_STAGE("features", "ORB frontend vs cv::ORB at 1280x720, 1500 keypoints", bench_features);

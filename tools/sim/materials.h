@@ -1,0 +1,60 @@
+// Tissue appearance, defined in each mesh's own frame (mm) so the texture
+// sticks to the surface. Colours are linear RGB albedo in [0, 1]; the
+// renderer applies the light, then a display gamma.
+//
+// Split for speed: low-frequency colour variation is evaluated once per
+// vertex (albedo_at_vertex, configure time); vessels and fine speckle are
+// evaluated per pixel (detail_at, allocation-free, a few noise lookups).
+#pragma once
+
+#include <cstdint>
+
+#include "core/se3.h"
+#include "tools/sim/noise.h"
+
+namespace st::sim {
+
+enum class MaterialId : std::uint8_t { Liver = 0, Fat, Wall, Neighbour, Instrument, Count };
+
+struct Material {
+  Vec3f base{0.3f, 0.05f, 0.04f};    // linear albedo
+  Vec3f alt{0.2f, 0.05f, 0.05f};     // blended with base by low-frequency fbm
+  float variation_mm = 25.0f;        // wavelength of the base/alt blend
+  Vec3f vessel{0.1f, 0.02f, 0.03f};  // albedo inside a vessel
+  float vessel_mm = 18.0f;           // spacing of the vessel network
+  float vessel_width = 0.06f;        // half-width in noise units (0 = none)
+  float vessel_strength = 0.5f;      // 0..1 blend towards the vessel colour
+  float speckle_mm = 0.6f;           // grain size of the fine speckle
+  float speckle_strength = 0.08f;    // relative albedo modulation
+  float specular = 0.35f;            // Blinn-Phong weight (wet tissue is glossy)
+  int shininess_log2 = 5;            // exponent 2^k: 32
+  float lobules = 0.0f;              // darker creases between round lobules (fat)
+  float lobule_mm = 9.0f;
+};
+
+Material material(MaterialId id);
+
+class Texture {
+ public:
+  explicit Texture(std::uint64_t seed) : noise_(seed), detail_(seed ^ 0x5A5A5A5Aull) {}
+  // Per-vertex albedo: base/alt blend, lobule creases, brightness variation.
+  Vec3f albedo_at_vertex(const Material& m, const Vec3f& p_mm) const;
+  // Fine detail at a point: vessel weight and speckle, both in [0, 1]
+  // (the renderer bakes these into per-triangle texel grids).
+  struct Detail {
+    float vessel = 0, speckle = 0.5f;
+  };
+  Detail detail_sample(const Material& m, const Vec3f& p_mm) const;
+  // Albedo after vessels and speckle, from the interpolated vertex albedo.
+  static Vec3f apply_detail(const Material& m, const Vec3f& albedo, float vessel, float speckle);
+  Vec3f detail_at(const Material& m, const Vec3f& p_mm, const Vec3f& albedo) const {
+    const Detail d = detail_sample(m, p_mm);
+    return apply_detail(m, albedo, d.vessel, d.speckle);
+  }
+
+ private:
+  Noise3 noise_;
+  Noise3 detail_;
+};
+
+}  // namespace st::sim

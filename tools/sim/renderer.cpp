@@ -1,0 +1,192 @@
+#include "tools/sim/renderer.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "core/capacity.h"
+#include "tools/sim/rng.h"
+
+namespace st::sim {
+namespace {
+
+constexpr int kGaussianTable = 1 << 16;
+constexpr int kGammaLut = 4096;
+
+}  // namespace
+
+void SceneRenderer::prepare_mesh(const Mesh& mesh, const std::vector<MaterialId>& material, int texels,
+                                 ShadeMesh* out) {
+  out->mesh = &mesh;
+  out->texels = texels;
+  out->normal = vertex_normals(mesh);
+  out->material = material;
+  out->albedo.resize(static_cast<std::size_t>(mesh.vertex_count()));
+  // Vertex albedo uses the material of any triangle touching the vertex;
+  // materials change only along whole-triangle boundaries, a soft seam.
+  std::vector<MaterialId> vmat(static_cast<std::size_t>(mesh.vertex_count()), material.front());
+  for (int t = 0; t < mesh.triangle_count(); ++t)
+    for (int k = 0; k < 3; ++k) vmat[mesh.tri[3 * t + k]] = material[t];
+  for (int i = 0; i < mesh.vertex_count(); ++i)
+    out->albedo[i] = texture_.albedo_at_vertex(materials_[static_cast<int>(vmat[i])],
+                                               mesh.vertex(i).cast<float>());
+  out->solve.resize(static_cast<std::size_t>(mesh.triangle_count()) * 9);
+  for (int t = 0; t < mesh.triangle_count(); ++t) {
+    const Vec3 v0 = mesh.vertex(mesh.tri[3 * t]);
+    const Vec3 e1 = mesh.vertex(mesh.tri[3 * t + 1]) - v0, e2 = mesh.vertex(mesh.tri[3 * t + 2]) - v0;
+    const double d00 = e1.dot(e1), d01 = e1.dot(e2), d11 = e2.dot(e2);
+    const double det = d00 * d11 - d01 * d01;
+    const double inv = std::abs(det) > 1e-18 ? 1.0 / det : 0.0;  // degenerate: all weight on v0
+    const Vec3 m1 = (d11 * e1 - d01 * e2) * inv, m2 = (d00 * e2 - d01 * e1) * inv;
+    float* s = &out->solve[9 * static_cast<std::size_t>(t)];
+    for (int k = 0; k < 3; ++k) {
+      s[k] = static_cast<float>(v0[k]);
+      s[3 + k] = static_cast<float>(m1[k]);
+      s[6 + k] = static_cast<float>(m2[k]);
+    }
+  }
+  bake_detail(out);
+}
+
+void SceneRenderer::bake_detail(ShadeMesh* sm) const {
+  const Mesh& mesh = *sm->mesh;
+  const int n = sm->texels;
+  sm->detail.resize(static_cast<std::size_t>(mesh.triangle_count()) * n * n * 2);
+  std::uint8_t* out = sm->detail.data();
+  for (int t = 0; t < mesh.triangle_count(); ++t) {
+    const Vec3f v0 = mesh.vertex(mesh.tri[3 * t]).cast<float>();
+    const Vec3f e1 = mesh.vertex(mesh.tri[3 * t + 1]).cast<float>() - v0;
+    const Vec3f e2 = mesh.vertex(mesh.tri[3 * t + 2]).cast<float>() - v0;
+    const Material& m = materials_[static_cast<int>(sm->material[t])];
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const float b1 = static_cast<float>(i) / static_cast<float>(n - 1);
+        const float b2 = static_cast<float>(j) / static_cast<float>(n - 1);
+        const Texture::Detail d = texture_.detail_sample(m, v0 + b1 * e1 + b2 * e2);
+        *out++ = static_cast<std::uint8_t>(std::lround(255.0f * d.vessel));
+        *out++ = static_cast<std::uint8_t>(std::lround(255.0f * d.speckle));
+      }
+  }
+}
+
+Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settings) {
+  if (Status s = CameraModel::validate(settings.K, settings.distortion); !s) return s;
+  settings_ = settings;
+  scene_ = &scene;
+  organ_centre_model_ = bounding_box(scene.organ).centre();
+  texture_ = Texture(settings.seed);
+  for (int m = 0; m < static_cast<int>(MaterialId::Count); ++m) materials_[m] = material(static_cast<MaterialId>(m));
+  build_camera_maps();
+  if (K_ideal_.width > kMaxImageWidth || K_ideal_.height > kMaxImageHeight)
+    return make_error("the distortion needs an ideal image of " + std::to_string(K_ideal_.width) + "x" +
+                      std::to_string(K_ideal_.height) + " pixels, above the image capacity");
+  // Texel grids: ~0.3 mm on the organ (2-3 mm triangles), ~0.5 mm on the
+  // floor (6 mm cells), coarse on the plain instrument.
+  const auto organ_tris = static_cast<std::size_t>(scene.organ.triangle_count());
+  prepare_mesh(scene.organ, std::vector<MaterialId>(organ_tris, MaterialId::Liver), 8, &organ_);
+  prepare_mesh(scene.background, scene.background_material, 12, &background_);
+  const auto instrument_tris = static_cast<std::size_t>(scene.instrument.triangle_count());
+  prepare_mesh(scene.instrument, std::vector<MaterialId>(instrument_tris, MaterialId::Instrument), 4, &instrument_);
+  RasterConfig rc;
+  rc.width = K_ideal_.width;
+  rc.height = K_ideal_.height;
+  rc.near_mm = 1.0;
+  rc.cull_backfaces = true;
+  if (Status s = organ_raster_.configure(scene.organ, rc); !s) return s;
+  if (Status s = background_raster_.configure(scene.background, rc); !s) return s;
+  if (Status s = instrument_raster_.configure(scene.instrument, rc); !s) return s;
+  accum_.create(K_ideal_.height, K_ideal_.width, CV_32FC3);
+  labels_ideal_.create(K_ideal_.height, K_ideal_.width, CV_8U);
+  linear_out_.create(settings.K.height, settings.K.width, CV_32FC3);
+  Rng rng(mix_seed(settings.seed, 0xC0FFEE));
+  gaussian_.resize(kGaussianTable);
+  for (float& g : gaussian_) g = static_cast<float>(rng.gaussian());
+  gamma_lut_.resize(kGammaLut);
+  for (int i = 0; i < kGammaLut; ++i)  // display gamma 1/2.2 (close to BT.709/sRGB)
+    gamma_lut_[i] = static_cast<std::uint8_t>(std::lround(255.0 * std::pow(i / (kGammaLut - 1.0), 1.0 / 2.2)));
+  return Status::Ok();
+}
+
+void SceneRenderer::build_camera_maps() {
+  const Pinhole& K = settings_.K;
+  const CameraModel cam(K, settings_.distortion);
+  const int W = K.width, H = K.height;
+  cv::Mat map_x(H, W, CV_32F), map_y(H, W, CV_32F);
+  double min_x = 0, min_y = 0, max_x = W - 1, max_y = H - 1;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      Vec2 ideal(x, y);
+      if (!settings_.distortion.is_zero()) (void)cam.undistort_pixel(Vec2(x, y), &ideal);
+      map_x.at<float>(y, x) = static_cast<float>(ideal.x());
+      map_y.at<float>(y, x) = static_cast<float>(ideal.y());
+      min_x = std::min(min_x, ideal.x());
+      max_x = std::max(max_x, ideal.x());
+      min_y = std::min(min_y, ideal.y());
+      max_y = std::max(max_y, ideal.y());
+    }
+  // The ideal image: same focal lengths, shifted so it covers every sample
+  // (without distortion it is the output image itself).
+  const bool distorted = !settings_.distortion.is_zero();
+  const int ox = distorted ? static_cast<int>(std::ceil(-min_x)) + 2 : 0;
+  const int oy = distorted ? static_cast<int>(std::ceil(-min_y)) + 2 : 0;
+  K_ideal_ = K;
+  K_ideal_.cx += ox;
+  K_ideal_.cy += oy;
+  K_ideal_.width = distorted ? static_cast<int>(std::ceil(max_x)) + ox + 3 : W;
+  K_ideal_.height = distorted ? static_cast<int>(std::ceil(max_y)) + oy + 3 : H;
+  map_x += static_cast<float>(ox);
+  map_y += static_cast<float>(oy);
+  nearest_.assign(static_cast<std::size_t>(W) * H, -1);
+  gain_.resize(static_cast<std::size_t>(W) * H);
+  const double r_corner2 = std::max(K.cx, W - 1 - K.cx) * std::max(K.cx, W - 1 - K.cx) +
+                           std::max(K.cy, H - 1 - K.cy) * std::max(K.cy, H - 1 - K.cy);
+  const double stop = settings_.field_stop_radius_px > 0 ? settings_.field_stop_radius_px : 0.66 * H;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * W + x;
+      const int ix = static_cast<int>(std::lround(map_x.at<float>(y, x)));
+      const int iy = static_cast<int>(std::lround(map_y.at<float>(y, x)));
+      if (ix >= 0 && iy >= 0 && ix < K_ideal_.width && iy < K_ideal_.height) nearest_[i] = iy * K_ideal_.width + ix;
+      const double r2 = (x - K.cx) * (x - K.cx) + (y - K.cy) * (y - K.cy);
+      double g = 1.0 - settings_.vignetting * r2 / r_corner2;
+      if (settings_.field_stop) g *= std::clamp((stop - std::sqrt(r2)) / 1.5 + 0.5, 0.0, 1.0);
+      gain_[i] = static_cast<float>(g);
+    }
+  if (!settings_.distortion.is_zero()) cv::convertMaps(map_x, map_y, map1_, map2_, CV_16SC2);
+}
+
+void SceneRenderer::render(const Trajectory& trajectory, int frame, cv::Mat& rgb, cv::Mat& labels) {
+  const int n = trajectory.blur_subframes(frame);
+  accum_.setTo(cv::Scalar::all(0));
+  for (int k = 0; k < n; ++k) {
+    // Shutter open for half the frame interval, centred on the frame time.
+    const double offset = n == 1 ? 0.0 : (k - (n - 1) / 2.0) / (n - 1) * 0.5;
+    render_subframe(trajectory.at(frame + offset), 1.0f / static_cast<float>(n), 2 * k == n - 1);
+  }
+  finish(frame, rgb, labels);
+}
+
+std::vector<std::pair<Vec2, Vec3>> SceneRenderer::visible_organ_points(const WorldState& state,
+                                                                     const cv::Mat& labels, int margin_px,
+                                                                     int step_px) {
+  const SE3 T_model_camera = state.T_model_camera();
+  organ_raster_.render(T_model_camera.inverse(), K_ideal_);
+  const ImageView<const float> depth = organ_raster_.depth();
+  std::vector<std::pair<Vec2, Vec3>> out;
+  const int W = labels.cols, H = labels.rows, m = margin_px;
+  auto organ = [&](int x, int y) { return labels.at<std::uint8_t>(y, x) == kLabelOrgan; };
+  for (int y = m; y < H - m; y += step_px)
+    for (int x = m; x < W - m; x += step_px) {
+      if (!organ(x, y) || !organ(x - m, y) || !organ(x + m, y) || !organ(x, y - m) || !organ(x, y + m)) continue;
+      const std::int32_t src = nearest_[static_cast<std::size_t>(y) * W + x];
+      if (src < 0) continue;
+      const int ix = src % K_ideal_.width, iy = src / K_ideal_.width;
+      const float d = depth(ix, iy);
+      if (d <= 0.0f) continue;
+      out.emplace_back(Vec2(x, y), T_model_camera * K_ideal_.unproject(Vec2(ix, iy), d));
+    }
+  return out;
+}
+
+}  // namespace st::sim

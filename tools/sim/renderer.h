@@ -1,0 +1,103 @@
+// Renders a simulated laparoscope frame: organ, background and instrument
+// rasterised by the project's MeshRasterizer (one instance each), composited
+// by depth and shaded with the scope light at the camera (inverse square,
+// Lambert + Blinn-Phong), then the camera: lens distortion (OpenCV model,
+// exact: every output pixel samples the ideal image at its undistorted
+// position), vignetting, field stop, sensor noise, display gamma.
+//
+// configure() allocates every buffer; render() reuses them (cv::Mat outputs
+// keep their size). Single-threaded.
+#pragma once
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "core/camera.h"
+#include "core/rasterizer.h"
+#include "core/result.h"
+#include "tools/sim/materials.h"
+#include "tools/sim/scenario.h"
+#include "tools/sim/scene.h"
+
+namespace st::sim {
+
+// Per-pixel labels of the rendered (output) image.
+inline constexpr std::uint8_t kLabelNone = 0, kLabelOrgan = 1, kLabelBackground = 2, kLabelInstrument = 3;
+
+struct RenderSettings {
+  Pinhole K;                 // output (distorted) image camera
+  Distortion distortion;     // OpenCV radial-tangential
+  bool field_stop = false;   // black outside a circle centred on (cx, cy)
+  double field_stop_radius_px = 0;  // 0: 0.66 * height
+  double vignetting = 0.35;  // relative brightness loss at the image corners
+  double exposure = 1.1;     // linear gain at the reference distance
+  double noise_read = 0.006; // sensor noise sigma, linear units
+  double noise_shot = 0.002; // signal-dependent variance per unit signal
+  std::uint64_t seed = 1;
+};
+
+class SceneRenderer {
+ public:
+  Status configure(const Scene& scene, const RenderSettings& settings);
+  // Frame `frame` of the trajectory: 8-bit RGB and labels, output size.
+  // Averages the trajectory's sub-frames (motion blur); the labels are the
+  // centre sub-frame, i.e. exactly the frame's pose.
+  void render(const Trajectory& trajectory, int frame, cv::Mat& rgb, cv::Mat& labels);
+  // Organ surface points seen at output pixels of a rendered frame (every
+  // step_px), at least margin_px inside the organ's label region: pairs of
+  // (output pixel, model point). Re-renders the organ at `state`.
+  std::vector<std::pair<Vec2, Vec3>> visible_organ_points(const WorldState& state, const cv::Mat& labels,
+                                                          int margin_px, int step_px);
+  // The ideal pinhole the meshes are rasterised with (output K plus a
+  // margin that covers the distorted image).
+  const Pinhole& ideal_camera() const { return K_ideal_; }
+
+ private:
+  struct ShadeMesh {  // per-vertex normals/albedo, per-triangle barycentric solve
+    std::vector<Vec3f> normal, albedo;
+    std::vector<float> solve;  // per triangle: v0 (3), M (2x3): (b1, b2) = M (p - v0)
+    std::vector<MaterialId> material;
+    // Fine detail baked per triangle: an n x n grid over (b1, b2) of
+    // (vessel, speckle) bytes, sampled bilinearly. Grid points beyond the
+    // b1 + b2 = 1 edge hold the texture continued over the triangle's
+    // plane, so interpolation never reads undefined texels.
+    int texels = 8;
+    std::vector<std::uint8_t> detail;
+    const Mesh* mesh = nullptr;
+  };
+  void prepare_mesh(const Mesh& mesh, const std::vector<MaterialId>& material, int texels, ShadeMesh* out);
+  void bake_detail(ShadeMesh* sm) const;
+  void build_camera_maps();
+  struct Xf {  // a rigid transform in float for the per-pixel loop
+    Eigen::Matrix3f R;
+    Vec3f t;
+  };
+  void render_subframe(const WorldState& state, float weight, bool keep_labels);
+  void shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight, bool keep_labels);
+  // Radiance (linear) of one ideal pixel on a mesh: light at the camera.
+  Vec3f shade_pixel(const ShadeMesh& sm, const Xf& T_mesh_camera, std::int32_t tri, float x, float y,
+                    float depth, float irradiance) const;
+  void finish(int frame, cv::Mat& rgb, cv::Mat& labels);
+
+  RenderSettings settings_;
+  Pinhole K_ideal_;
+  const Scene* scene_ = nullptr;
+  Texture texture_{1};
+  Vec3 organ_centre_model_;
+  Material materials_[static_cast<int>(MaterialId::Count)];
+  ShadeMesh organ_, background_, instrument_;
+  MeshRasterizer organ_raster_, background_raster_, instrument_raster_;
+  cv::Mat accum_;         // ideal image, linear RGB, CV_32FC3
+  cv::Mat labels_ideal_;  // CV_8U
+  cv::Mat map1_, map2_;   // output -> ideal (fixed point maps for cv::remap)
+  std::vector<std::int32_t> nearest_;  // output pixel -> ideal pixel index, -1 outside
+  cv::Mat linear_out_;    // output size, CV_32FC3
+  std::vector<float> gain_;            // vignetting x field stop, per output pixel
+  std::vector<float> gaussian_;        // table of N(0, 1) samples for sensor noise
+  std::vector<std::uint8_t> gamma_lut_;
+};
+
+}  // namespace st::sim

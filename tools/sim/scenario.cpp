@@ -1,0 +1,183 @@
+#include "tools/sim/scenario.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "tools/sim/rng.h"
+
+namespace st::sim {
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+double smoothstep(double e0, double e1, double x) {
+  const double t = std::clamp((x - e0) / (e1 - e0), 0.0, 1.0);
+  return t * t * (3.0 - 2.0 * t);
+}
+
+Vec3 spherical(double azimuth, double elevation, double distance) {
+  return distance * Vec3(std::cos(elevation) * std::cos(azimuth),
+                         std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+}
+
+}  // namespace
+
+Result<ScenarioKind> parse_scenario(std::string_view name) {
+  if (name == "orbit") return ScenarioKind::Orbit;
+  if (name == "fast") return ScenarioKind::Fast;
+  if (name == "outofview") return ScenarioKind::OutOfView;
+  if (name == "manipulation") return ScenarioKind::Manipulation;
+  if (name == "invivo") return ScenarioKind::InVivo;
+  return make_error("unknown scenario '" + std::string(name) +
+                    "': use orbit, fast, outofview, manipulation or invivo");
+}
+
+const char* scenario_name(ScenarioKind kind) {
+  switch (kind) {
+    case ScenarioKind::Orbit: return "orbit";
+    case ScenarioKind::Fast: return "fast";
+    case ScenarioKind::OutOfView: return "outofview";
+    case ScenarioKind::Manipulation: return "manipulation";
+    case ScenarioKind::InVivo: return "invivo";
+  }
+  return "?";
+}
+
+SE3 look_at(const Vec3& eye, const Vec3& target, double roll_rad) {
+  const Vec3 z = (target - eye).normalized();
+  const Vec3 x = z.cross(Vec3::UnitZ()).normalized();
+  const Vec3 y = z.cross(x);
+  Mat3 R;
+  R << x, y, z;
+  const Mat3 roll = Eigen::AngleAxisd(roll_rad, Vec3::UnitZ()).toRotationMatrix();
+  return SE3(R * roll, eye);
+}
+
+Trajectory::Trajectory(ScenarioKind kind, const Scene& scene, int frames, std::uint64_t seed)
+    : kind_(kind),
+      frames_(std::max(frames, 2)),
+      box_(scene.organ_box_world),
+      T_world_model_rest_(scene.T_world_model_rest),
+      tremor_(seed + 101) {
+  Rng rng(mix_seed(seed, 77));
+  azimuth0_ = rng.uniform(-M_PI, M_PI);
+  phase_ = rng.uniform(0.0, 2.0 * M_PI);
+  // Grasp point: the organ vertex highest up in the thinner (+x) half, a
+  // spot an instrument can reach from above.
+  double best = -1e9;
+  for (int i = 0; i < scene.organ.vertex_count(); ++i) {
+    const Vec3 p_world = T_world_model_rest_ * scene.organ.vertex(i);
+    const double score = p_world.z() + 0.4 * p_world.x() - 0.2 * std::abs(p_world.y());
+    if (p_world.x() > 0.15 * box_.size().x() && score > best) {
+      best = score;
+      grasp_model_ = scene.organ.vertex(i);
+    }
+  }
+  const double side = azimuth0_ - 70.0 * kDeg;  // away from the orbit sweep
+  hover_world_ = Vec3(0.05 * box_.size().x(), -0.1 * box_.size().y(), box_.max.z() + 6.0);
+  trocar_world_ = Vec3(0, 0, 0) + spherical(side, 50.0 * kDeg, 260.0);
+}
+
+Trajectory::View Trajectory::orbit_view(double u) const {
+  const double w = 2.0 * M_PI * u;
+  const double az = azimuth0_ + 100.0 * kDeg * u;
+  const double el = (58.0 + 12.0 * std::sin(1.3 * w + phase_)) * kDeg;
+  const double dist = 128.0 + 28.0 * std::sin(0.9 * w + 1.0 + phase_);
+  const Vec3 target(15.0 * std::sin(w), 10.0 * std::cos(0.7 * w), 0.25 * box_.max.z());
+  return {target + spherical(az, el, dist), target, 10.0 * kDeg * std::sin(0.8 * w + phase_)};
+}
+
+Trajectory::View Trajectory::fast_view(double u) const {
+  // Two bursts where the path jumps ahead: ~35 deg of orbit in ~0.4 s.
+  const double jump = 0.35 * (smoothstep(0.28, 0.32, u) + smoothstep(0.68, 0.72, u));
+  View v = orbit_view(0.5 * u + jump);
+  const double burst = std::exp(-std::pow((u - 0.3) / 0.02, 2)) + std::exp(-std::pow((u - 0.7) / 0.02, 2));
+  v.roll_rad += burst * 8.0 * kDeg * std::sin(40.0 * u);
+  return v;
+}
+
+Trajectory::View Trajectory::outofview_view(double u) const {
+  // Look away (at the abdominal wall) in [0.42, 0.56], then come back to
+  // the view of u - 0.45: a place already seen. While fully away the pose
+  // does not depend on the base view, so the switch at 0.5 is seamless.
+  const View base = u < 0.5 ? orbit_view(u) : orbit_view(u - 0.45);
+  const double away = smoothstep(0.36, 0.42, u) * (1.0 - smoothstep(0.56, 0.62, u));
+  const Vec3 away_dir(std::cos(azimuth0_ + 2.2), std::sin(azimuth0_ + 2.2), 0.0);
+  const Vec3 away_target = 230.0 * away_dir + Vec3(0, 0, box_.max.z());
+  const View start = orbit_view(0.42);
+  const Vec3 away_eye = start.eye + 0.35 * (away_target - start.target);
+  View v = base;
+  v.target = base.target + away * (away_target - base.target);
+  v.eye = base.eye + away * (away_eye - base.eye);
+  v.roll_rad = base.roll_rad + away * (start.roll_rad - base.roll_rad);
+  return v;
+}
+
+Trajectory::View Trajectory::manipulation_view(double u) const {
+  // Close enough that the organ overfills the image: parts leave the edges.
+  const double w = 2.0 * M_PI * u;
+  const double az = azimuth0_ + 20.0 * kDeg * std::sin(w);
+  const Vec3 target(0.1 * box_.size().x(), 0.0, 0.3 * box_.max.z());
+  return {target + spherical(az, 62.0 * kDeg, 115.0 + 8.0 * std::cos(w)), target,
+          5.0 * kDeg * std::sin(w)};
+}
+
+SE3 Trajectory::organ_motion(double u) const {
+  if (kind_ != ScenarioKind::Manipulation) return T_world_model_rest_;
+  // Pulled up at the grasp point and turned: tilt about an axis through the
+  // far (-x) lobe, plus a twist about the vertical. Up, hold, back down.
+  const double s = smoothstep(0.1, 0.4, u) * (1.0 - smoothstep(0.7, 0.95, u));
+  const Vec3 pivot(box_.min.x() + 0.2 * box_.size().x(), 0.0, box_.min.z());
+  const Mat3 R = (Eigen::AngleAxisd(-28.0 * kDeg * s, Vec3::UnitY()) *
+                  Eigen::AngleAxisd(14.0 * kDeg * s, Vec3::UnitZ()))
+                     .toRotationMatrix();
+  const SE3 about_pivot(R, pivot - R * pivot + Vec3(0, 0, 8.0 * s));
+  return about_pivot * T_world_model_rest_;
+}
+
+SE3 Trajectory::instrument_pose(double u, const SE3& T_world_model) const {
+  Vec3 tip = hover_world_ + Vec3(6.0 * std::sin(5.0 * u), 4.0 * std::cos(3.0 * u), 0);
+  if (kind_ == ScenarioKind::Manipulation) tip = T_world_model * grasp_model_;
+  const Vec3 axis = (trocar_world_ - tip).normalized();  // instrument +z
+  const Vec3 x = axis.unitOrthogonal();
+  Mat3 R;
+  R << x, axis.cross(x), axis;
+  return SE3(R, tip + 12.0 * axis);  // the jaw tip (z = -12) touches `tip`
+}
+
+SE3 Trajectory::to_pose(const View& v, double t) const {
+  // Hand tremor: ~1 mm and ~0.5 deg, smooth at ~2 Hz.
+  const auto f = static_cast<float>(t * 2.0);
+  const Vec3 shake(tremor_.gradient(f, 0.5f, 0.5f), tremor_.gradient(f, 10.5f, 0.5f),
+                   tremor_.gradient(f, 20.5f, 0.5f));
+  const double roll_shake = 0.6 * kDeg * static_cast<double>(tremor_.gradient(f, 30.5f, 0.5f));
+  return look_at(v.eye + 1.2 * shake, v.target + 2.0 * shake.reverse(), v.roll_rad + roll_shake);
+}
+
+WorldState Trajectory::at(double frame) const {
+  const double u = frame / (frames_ - 1);
+  const double t_s = frame / 30.0;
+  View v;
+  switch (kind_) {
+    case ScenarioKind::Fast: v = fast_view(u); break;
+    case ScenarioKind::OutOfView: v = outofview_view(u); break;
+    case ScenarioKind::Manipulation: v = manipulation_view(u); break;
+    case ScenarioKind::Orbit:
+    case ScenarioKind::InVivo: v = orbit_view(u); break;
+  }
+  WorldState s;
+  s.T_world_camera = to_pose(v, t_s);
+  s.T_world_model = organ_motion(u);
+  s.T_world_instrument = instrument_pose(u, s.T_world_model);
+  return s;
+}
+
+int Trajectory::blur_subframes(int frame) const {
+  // Blur where the scope turns more than 1 deg or moves > 2 mm in the
+  // half-frame exposure (a ~10 px smear at 1280x720).
+  const WorldState a = at(frame - 0.25), b = at(frame + 0.25);
+  const PoseDelta d = pose_delta(a.T_model_camera(), b.T_model_camera());
+  return (d.angle_deg > 1.0 || d.distance_mm > 2.0) ? 5 : 1;
+}
+
+}  // namespace st::sim
