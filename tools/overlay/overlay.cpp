@@ -123,7 +123,7 @@ void OverlayRenderer::draw(const FrameAnnotations& a, ImageView<std::uint8_t> y,
   if (a.T_model_camera) {
     render_labels(*a.T_model_camera);
     if (style_.wireframe) draw_wireframe(labels_.cview(), style_.silhouette, style_.wireframe_alpha, &layer_);
-    draw_silhouette(labels_.cview(), style_.silhouette, &layer_);
+    draw_silhouette(labels_.cview(), style_.silhouette, std::max(1, width_ / 640), &layer_);
   }
   if (style_.markers && a.T_model_camera_gt) draw_markers(*a.T_model_camera_gt, style_.truth_marker, true);
   if (style_.markers && a.T_model_camera) draw_markers(*a.T_model_camera, style_.tracked_marker, false);

@@ -59,14 +59,18 @@ void OverlayLayer::composite(ImageView<std::uint8_t> y, ImageView<std::uint8_t> 
   }
 }
 
-void draw_silhouette(ImageView<const std::int32_t> labels, Rgb colour, OverlayLayer* layer) {
+void draw_silhouette(ImageView<const std::int32_t> labels, Rgb colour, int half_width, OverlayLayer* layer) {
+  const int r = std::max(1, half_width);
   for (int y = 0; y < labels.height; ++y) {
     for (int x = 0; x < labels.width; ++x) {
       const bool organ = labels(x, y) >= 0;
       bool edge = false;
-      const int nx[4] = {x - 1, x + 1, x, x}, ny[4] = {y, y, y - 1, y + 1};
-      for (int k = 0; k < 4 && !edge; ++k)
-        edge = labels.contains(nx[k], ny[k]) && (labels(nx[k], ny[k]) >= 0) != organ;
+      // Another side within r pixels along a row or a column.
+      for (int k = 1; k <= r && !edge; ++k) {
+        const int nx[4] = {x - k, x + k, x, x}, ny[4] = {y, y, y - k, y + k};
+        for (int j = 0; j < 4 && !edge; ++j)
+          edge = labels.contains(nx[j], ny[j]) && (labels(nx[j], ny[j]) >= 0) != organ;
+      }
       if (edge) layer->set(x, y, colour, 1.0);
     }
   }

@@ -38,10 +38,11 @@ class OverlayLayer {
 };
 
 // Organ labels per output pixel: the visible triangle's id, -1 where no organ.
-// Silhouette: pixels on both sides of every organ/background boundary (a
-// line two pixels wide centred on the true edge). The image border is not an
-// edge. Wireframe: pixels where two visible triangles meet.
-void draw_silhouette(ImageView<const std::int32_t> labels, Rgb colour, OverlayLayer* layer);
+// Silhouette: pixels within half_width (>= 1) of the other side of an
+// organ/background boundary, on both sides (a line 2 * half_width pixels
+// wide centred on the true edge). The image border is not an edge.
+// Wireframe: pixels where two visible triangles meet.
+void draw_silhouette(ImageView<const std::int32_t> labels, Rgb colour, int half_width, OverlayLayer* layer);
 void draw_wireframe(ImageView<const std::int32_t> labels, Rgb colour, double alpha, OverlayLayer* layer);
 
 }  // namespace st::overlay
