@@ -26,6 +26,20 @@ int best_arc_min(const int* d) {
   return best;
 }
 
+#if CV_SIMD128
+// best_arc_min for 16 pixels: d[0..15] are the per-lane circle differences
+// (saturated at 0), the arcs wrap around.
+cv::v_uint8x16 best_arc_min_simd(const cv::v_uint8x16* d) {
+  cv::v_uint8x16 m2[22], m4[20], m8[16];
+  for (int i = 0; i < 22; ++i) m2[i] = cv::v_min(d[i & 15], d[(i + 1) & 15]);
+  for (int i = 0; i < 20; ++i) m4[i] = cv::v_min(m2[i], m2[i + 2]);
+  for (int i = 0; i < 16; ++i) m8[i] = cv::v_min(m4[i], m4[i + 4]);
+  cv::v_uint8x16 best = cv::v_min(m8[0], d[8]);
+  for (int i = 1; i < 16; ++i) best = cv::v_max(best, cv::v_min(m8[i], d[(i + 8) & 15]));
+  return best;
+}
+#endif
+
 }  // namespace
 
 int fast9_score(GrayView image, int x, int y) {
@@ -59,7 +73,6 @@ void Fast9Detector::score_row(GrayView image, int y, int threshold, int x_begin,
   std::ptrdiff_t off[16];
   for (int i = 0; i < 16; ++i) off[i] = kCircleDy[i] * image.stride + kCircleDx[i];
   const cv::v_uint8x16 tv = cv::v_setall_u8(static_cast<std::uint8_t>(threshold));
-  const cv::v_uint8x16 one = cv::v_setall_u8(1), eight = cv::v_setall_u8(8);
   for (; x + 16 <= x_end; x += 16) {
     if (allowed && !(allowed[x >> 4] | allowed[(x + 15) >> 4])) continue;
     const std::uint8_t* q = p + x;
@@ -72,26 +85,25 @@ void Fast9Detector::score_row(GrayView image, int y, int threshold, int x_begin,
                                  (((c0 < lo) | (c8 < lo)) & ((c4 < lo) | (c12 < lo)));
     if (!cv::v_check_any(quick)) continue;
     cv::v_uint8x16 bright[16], dark[16];
+    // Scores of all 16 lanes at once (same definition as fast9_score).
     for (int i = 0; i < 16; ++i) {
       const cv::v_uint8x16 c = cv::v_load(q + off[i]);
-      bright[i] = c > hi;
-      dark[i] = c < lo;
+      bright[i] = c - v;  // saturating: 0 where not brighter
+      dark[i] = v - c;
     }
-    cv::v_uint8x16 run_b = cv::v_setzero_u8(), run_d = run_b, max_b = run_b, max_d = run_b;
-    for (int i = 0; i < 25; ++i) {
-      run_b = (run_b + one) & bright[i & 15];
-      run_d = (run_d + one) & dark[i & 15];
-      max_b = cv::v_max(max_b, run_b);
-      max_d = cv::v_max(max_d, run_d);
-    }
-    unsigned mask = static_cast<unsigned>(cv::v_signmask(cv::v_max(max_b, max_d) > eight));
+    // A lane is a corner iff its score exceeds the threshold.
+    const cv::v_uint8x16 score = cv::v_max(best_arc_min_simd(bright), best_arc_min_simd(dark));
+    unsigned mask = static_cast<unsigned>(cv::v_signmask(score > tv));
+    if (!mask) continue;
+    alignas(16) std::uint8_t lane_score[16];
+    cv::v_store_aligned(lane_score, score);
     while (mask) {
-      const int xx = x + std::countr_zero(mask);
+      const int lane = std::countr_zero(mask);
       mask &= mask - 1;
-      const int s = fast9_score(image, xx, y);
+      const int s = lane_score[lane];
       if (s > threshold) {
-        scores[xx] = static_cast<std::uint8_t>(s);
-        xs[(*n)++] = static_cast<std::uint16_t>(xx);
+        scores[x + lane] = static_cast<std::uint8_t>(s);
+        xs[(*n)++] = static_cast<std::uint16_t>(x + lane);
       }
     }
   }

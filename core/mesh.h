@@ -17,7 +17,9 @@ struct Mesh {
 
   int vertex_count() const { return static_cast<int>(x.size()); }
   int triangle_count() const { return static_cast<int>(tri.size() / 3); }
-  Vec3 vertex(int i) const { return {x[i], y[i], z[i]}; }
+  Vec3 vertex(int i) const {
+    return {static_cast<double>(x[i]), static_cast<double>(y[i]), static_cast<double>(z[i])};
+  }
   void add_vertex(float vx, float vy, float vz) {
     x.push_back(vx);
     y.push_back(vy);

@@ -79,7 +79,7 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   organ_tmp_.assign(static_cast<std::size_t>(width) * height, 0);
   blocks_x_ = ceil_div(width, kBlock);
   blocks_y_ = ceil_div(height, kBlock);
-  block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 2, 0);
+  block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 3, 0);
   chunk_ok_.assign(static_cast<std::size_t>(height) * (ceil_div(width, kBlock) + 1), 0);
   return Status::Ok();
 }
@@ -112,6 +112,42 @@ void OrbExtractor::prepare_masks(GrayView organ, GrayView valid) {
     allowed += b_organ[i];
   }
   allowed_fraction_ = static_cast<float>(allowed) / static_cast<float>(nb);
+  mark_full_blocks();
+}
+
+// block_full_: blocks whose 3x3 block neighbourhood is entirely inside both
+// masks. A FAST circle (radius <= 3 * scale < 16 px for scale < 5.3) centred
+// in such a block lies inside, so inside_masks() can answer at once.
+void OrbExtractor::mark_full_blocks() {
+  const std::size_t nb = static_cast<std::size_t>(blocks_x_) * blocks_y_;
+  std::uint8_t* full = block_ok_.data() + 2 * nb;
+  std::fill(full, full + nb, 0);
+  if (pyramid_.scale(pyramid_.levels() - 1) * 3.f >= static_cast<float>(kBlock)) return;
+  std::uint8_t* tmp = block_ok_.data() + nb;  // block-level "all inside"
+  std::fill(tmp, tmp + nb, 1);
+  auto clear_blocks = [&](GrayView m) {
+    for (int my = 0; my < m.height; ++my) {
+      const std::uint8_t* row = m.row(my);
+      const int y0 = static_cast<int>(static_cast<std::int64_t>(my) * height_ / m.height) / kBlock;
+      const int y1 = static_cast<int>((static_cast<std::int64_t>(my + 1) * height_ - 1) / m.height) / kBlock;
+      for (int mx = 0; mx < m.width; ++mx) {
+        if (row[mx]) continue;
+        const int x0 = static_cast<int>(static_cast<std::int64_t>(mx) * width_ / m.width) / kBlock;
+        const int x1 = static_cast<int>((static_cast<std::int64_t>(mx + 1) * width_ - 1) / m.width) / kBlock;
+        for (int by = y0; by <= y1; ++by)
+          for (int bx = x0; bx <= x1; ++bx) tmp[by * blocks_x_ + bx] = 0;
+      }
+    }
+  };
+  if (!organ_.empty()) clear_blocks(organ_);
+  if (!valid_.empty()) clear_blocks(valid_);
+  for (int by = 1; by + 1 < blocks_y_; ++by)
+    for (int bx = 1; bx + 1 < blocks_x_; ++bx) {
+      std::uint8_t all = 1;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) all &= tmp[(by + dy) * blocks_x_ + bx + dx];
+      full[by * blocks_x_ + bx] = all;
+    }
 }
 
 void OrbExtractor::build_chunk_map(int level) {
@@ -137,6 +173,9 @@ void OrbExtractor::build_chunk_map(int level) {
 bool OrbExtractor::inside_masks(int level, int x, int y) const {
   const float s = pyramid_.scale(level);
   const float X = to_level0(static_cast<float>(x), s), Y = to_level0(static_cast<float>(y), s);
+  const int bx = std::clamp(static_cast<int>(X) / kBlock, 0, blocks_x_ - 1);
+  const int by = std::clamp(static_cast<int>(Y) / kBlock, 0, blocks_y_ - 1);
+  if (block_ok_[static_cast<std::size_t>(2 * blocks_x_ * blocks_y_ + by * blocks_x_ + bx)]) return true;
   if (!organ_.empty()) {
     const int mx = to_mask(X, organ_.width, width_), my = to_mask(Y, organ_.height, height_);
     if (!organ_.contains(mx, my) || !organ_(mx, my)) return false;
@@ -188,6 +227,10 @@ int OrbExtractor::spread(int level, int n, int target) {
                                                              static_cast<float>(target))));
   const int cells_x = ceil_div(img.width, cell);
   Candidate* c = cand_.data();
+  if (cells_x == 1 && cell >= img.height) {  // one cell: the strongest, in O(n)
+    std::nth_element(c, c + target, c + n, [](const Candidate& a, const Candidate& b) { return a.key > b.key; });
+    return target;
+  }
   for (int i = 0; i < n; ++i) c[i].cell = static_cast<std::uint32_t>((c[i].y / cell) * cells_x + c[i].x / cell);
   std::sort(c, c + n, [](const Candidate& a, const Candidate& b) {
     return a.cell != b.cell ? a.cell < b.cell : a.key > b.key;

@@ -88,6 +88,7 @@ class OrbExtractor {
     std::uint8_t rank;    // order inside its spreading cell by key (0 = best)
   };
   void prepare_masks(GrayView organ, GrayView valid);
+  void mark_full_blocks();
   void build_chunk_map(int level);
   bool inside_masks(int level, int x, int y) const;
   int filter_candidates(int level, int n_fast);
@@ -105,7 +106,8 @@ class OrbExtractor {
   std::vector<std::uint8_t> cell_has_strict_;
   std::vector<std::uint8_t> organ_dilated_;  // organ mask dilated by the margin (mask resolution)
   std::vector<std::uint8_t> organ_tmp_;
-  std::vector<std::uint8_t> block_ok_;       // 16x16 level-0 blocks with any allowed pixel
+  std::vector<std::uint8_t> block_ok_;       // per 16x16 level-0 block: [0] any allowed pixel,
+                                             // [1] scratch, [2] neighbourhood fully allowed
   std::vector<std::uint8_t> chunk_ok_;       // per level: rows x 16-pixel chunks
   GrayView organ_;                           // dilated organ mask of this frame (or empty)
   GrayView valid_;                           // valid mask of this frame (or empty)

@@ -51,8 +51,27 @@ struct TrackerConfig {
   // Honest state: below any of these the frame is lost.
   int min_inliers = 30;
   double min_inlier_ratio = 0.35;  // inliers / matched correspondences
-  double max_rms_px = 2.5;         // inlier reprojection RMS, ideal pixels
+  double max_rms_px = 2.5;         // inlier reprojection RMS, ideal pixels, each residual scaled
+                                   // by its octave's sigma (1.2^octave): level-0 pixels
   double min_mask_agreement = 0.9; // share of inliers inside the organ rendered at the final pose
+  // Search by projection (full-resolution pixels, scaled by the predicted octave's scale).
+  float search_radius_px = 15.f;   // around the constant-velocity prediction
+  float wide_radius_px = 45.f;     // second pass when the first gives too few matches
+  float refine_radius_px = 5.f;    // local-map search again at the first solved pose
+  int max_hamming = 100;           // descriptor distance limit of a match (of 256 bits)
+  // Implausible motion: a pose this far from the prediction is lost (generous on purpose).
+  double max_jump_deg = 25.0;
+  double max_jump_mm = 40.0;       // camera centre displacement
+  // Keyframes: inserted when the tracked points fell below this share of the
+  // reference keyframe's, or the view turned / travelled beyond these.
+  double keyframe_tracked_ratio = 0.7;
+  double keyframe_angle_deg = 10.0;
+  double keyframe_distance_ratio = 0.1;  // camera travel / median inlier depth
+  // Relocalisation and the stricter gates after it.
+  int reloc_keyframes_per_frame = 2;    // brute-force budget per lost frame
+  int strict_frames = 5;                // frames after relocalisation under strict gates
+  double strict_inlier_factor = 1.5;    // min_inliers multiplier when strict
+  int min_spread_cells = 3;             // strict: inliers must occupy this many cells of a 4x4 grid
   // Clock for stage timings (monotonic ns); nullptr: no timings.
   std::int64_t (*now_ns)() = nullptr;
 };
@@ -65,11 +84,14 @@ struct TrackResult {
   int matches = 0;                // correspondences given to the pose solver
   int inliers = 0;
   double inlier_ratio = 0;
-  double rms_px = 0;
+  double rms_px = 0;              // unweighted inlier RMS, ideal pixels
+  double whitened_rms_px = 0;     // octave-normalised inlier RMS (what max_rms_px gates)
   double mask_agreement = 0;
   bool keyframe = false;          // a keyframe was inserted this frame
   int map_points = 0, keyframes = 0;
   StageTimes times_ms{};
+  double pose_jump_deg = 0, pose_jump_mm = 0;  // final pose vs the prediction (tracking)
+  int local_map = 0;              // map points projected into the predicted view
 };
 
 class TrackerImpl;
@@ -91,6 +113,11 @@ class Tracker {
   // Allocates nothing.
   TrackResult step(GrayView luma, int frame_index);
   void stop();
+
+  // Diagnostics (tests, overlay; not for the hot path): copies the model
+  // points of up to capacity alive map points to p_model; returns how many
+  // were written. 0 before configure().
+  int map_points(Vec3* p_model, int capacity) const;
 
  private:
   TrackerImpl* impl_ = nullptr;  // allocated in configure()

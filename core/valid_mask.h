@@ -46,6 +46,7 @@ class ValidMaskBuilder {
 
  private:
   void downsample(GrayView frame);
+  void downsample2(GrayView frame);
   void field_stop_spans();
   ValidMaskConfig config_;
   int width_ = 0, height_ = 0, mask_w_ = 0, mask_h_ = 0;

@@ -99,9 +99,7 @@ TEST_CASE("raster: adversarial meshes match the reference") {
                   {"closed sphere", sphere_mesh(Vec3(5, -3, 160), 50, 24, 48), 1.0}};
   for (auto& c : cases) {
     for (int ds : {1, 2}) {
-      RasterConfig cfg;
-      cfg.width = K.width;
-      cfg.height = K.height;
+      RasterConfig cfg = raster_config(K);
       cfg.downscale = ds;
       cfg.near_mm = c.near_mm;
       CAPTURE(std::string(c.name));
@@ -117,9 +115,7 @@ TEST_CASE("raster: fans sharing edges cover every pixel exactly once") {
   const Pinhole K = small_pinhole();
   for (bool aligned : {true, false}) {
     const Mesh fan = fan_mesh(K, aligned);
-    RasterConfig cfg;
-    cfg.width = K.width;
-    cfg.height = K.height;
+    RasterConfig cfg = raster_config(K);
     MeshRasterizer r;
     REQUIRE(r.configure(fan, cfg).ok());
     r.render(SE3(), K);
@@ -130,9 +126,7 @@ TEST_CASE("raster: fans sharing edges cover every pixel exactly once") {
     CHECK(r.stats().triangles_drawn == fan.triangle_count());
   }
   // The near-plane floor: clipped pieces and their neighbours tile exactly.
-  RasterConfig cfg;
-  cfg.width = K.width;
-  cfg.height = K.height;
+  RasterConfig cfg = raster_config(K);
   Mesh floor = near_plane_mesh();
   floor.tri.resize(floor.tri.size() - 6);  // drop the two walls (they overlap the floor)
   MeshRasterizer r;

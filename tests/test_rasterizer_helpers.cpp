@@ -88,9 +88,7 @@ TEST_CASE("raster: render and every helper allocate nothing after configure") {
 TEST_CASE("raster: depth_at interpolates on one surface and never across a step") {
   const Pinhole K = quad_pinhole();
   const Mesh m = two_quads(K);
-  RasterConfig cfg;
-  cfg.width = K.width;
-  cfg.height = K.height;
+  RasterConfig cfg = raster_config(K);
   MeshRasterizer r;
   REQUIRE(r.configure(m, cfg).ok());
   r.render(SE3(), K);
@@ -207,9 +205,7 @@ TEST_CASE("raster: visible_triangles is the sorted set of ids in the buffer") {
 TEST_CASE("raster: bad configuration and bad input are refused or give an empty render") {
   const Pinhole K = quad_pinhole();
   const Mesh good = two_quads(K);
-  RasterConfig cfg;
-  cfg.width = K.width;
-  cfg.height = K.height;
+  RasterConfig cfg = raster_config(K);
   MeshRasterizer r;
   // Before configure: nothing to see, nothing crashes.
   r.render(SE3(), K);

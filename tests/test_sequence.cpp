@@ -134,3 +134,30 @@ TEST_CASE("sequence: bad sequence.yaml gives clear errors, never throws") {
     CHECK(r.message().find(c.needle) != std::string::npos);
   }
 }
+
+TEST_CASE("sequence: a file in the shape of OpenCV's calibration sample output is accepted") {
+  // What opencv's calibration sample writes (extra keys, strings, matrices,
+  // an nd-matrix), with the sequence keys added.
+  cv::FileStorage fs(".yaml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+  fs << "calibration_time" << "Sat Nov 21 08:00:00 2026";
+  fs << "nr_of_frames" << 25 << "image_width" << 1920 << "image_height" << 1080;
+  fs << "board_width" << 9 << "board_height" << 6 << "square_size" << 25.0;
+  fs << "flags" << 0 << "fisheye_model" << 0;
+  fs << "camera_matrix" << (cv::Mat_<double>(3, 3) << 1400, 0, 959.5, 0, 1400, 539.5, 0, 0, 1);
+  fs << "distortion_coefficients" << (cv::Mat_<double>(5, 1) << -0.2, 0.05, 0, 0, 0);
+  fs << "avg_reprojection_error" << 0.31;
+  fs << "per_view_reprojection_errors" << cv::Mat(25, 1, CV_32F, cv::Scalar(0.3f));
+  const int sizes[3] = {2, 3, 2};
+  fs << "image_points" << cv::Mat(3, sizes, CV_32F, cv::Scalar(1.0f));
+  fs << "fps" << 30 << "video" << "video.y4m" << "mesh" << "liver.stl";
+  fs << "T_camera_model_init" << cv::Mat(cv::Mat::eye(4, 4, CV_64F));
+  const std::string text = fs.releaseAndGetString();
+  auto r = parse_sequence_yaml(text);
+  REQUIRE_MESSAGE(r.ok(), (r.ok() ? "" : r.message()));
+  CHECK(r->width == 1920);
+  CHECK(r->K.cx == 959.5);
+  CHECK(r->distortion.count == 5);
+  CHECK(r->distortion.k[0] == -0.2);
+  CHECK(r->fps == 30);
+  CHECK(r->mesh == "liver.stl");
+}

@@ -8,6 +8,7 @@
 
 #include "core/camera.h"
 #include "core/mesh.h"
+#include "core/rasterizer.h"
 #include "core/se3.h"
 
 namespace st::test {
@@ -37,6 +38,14 @@ inline SE3 look_at(const Vec3& target_model, const Vec3& view_dir_model, double 
   R_model_camera = R_model_camera * so3_exp(Vec3(0, 0, roll_rad));
   const Vec3 eye_model = target_model - distance_mm * z;
   return SE3(R_model_camera, eye_model).inverse();
+}
+
+// A full-resolution raster of K's image size, other settings default.
+inline RasterConfig raster_config(const Pinhole& K) {
+  RasterConfig cfg;
+  cfg.width = K.width;
+  cfg.height = K.height;
+  return cfg;
 }
 
 // The bench view: 1280x720, fx = fy = 1000, principal point at the centre.

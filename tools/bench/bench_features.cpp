@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "bench.h"
+#include "core/image_pyramid.h"
 #include "core/orb_extractor.h"
 #include "core/valid_mask.h"
 
@@ -63,12 +64,17 @@ int bench_features(const st::bench::Options& opt) {
   const std::vector<cv::Mat> frames = make_frames(full, 12);
   st::OrbExtractor orb;
   st::ValidMaskBuilder valid;
-  if (!orb.configure(st::OrbConfig{}, 1280, 720) || !valid.configure(st::ValidMaskConfig{}, 1280, 720)) return 1;
+  st::OrbConfig config;  // args: [relaxed_threshold [strict_threshold]] to explore
+  if (!opt.args.empty()) config.fast_threshold_relaxed = std::atoi(opt.args[0].c_str());
+  if (opt.args.size() > 1) config.fast_threshold_strict = std::atoi(opt.args[1].c_str());
+  if (!orb.configure(config, 1280, 720) || !valid.configure(st::ValidMaskConfig{}, 1280, 720)) return 1;
   auto features = std::make_unique<st::FeatureSet>();
+  st::ImagePyramid pyramid;  // the same pyramid alone, to split the time
+  if (!pyramid.configure(1280, 720, config.levels, config.scale_factor)) return 1;
   cv::Ptr<cv::ORB> cv_orb = cv::ORB::create(1500, 1.2f, 8);
   std::vector<cv::KeyPoint> kps;
   cv::Mat desc;
-  std::vector<double> ours_ms, ours_extract_ms, mask_ms, cv_ms;
+  std::vector<double> ours_ms, ours_extract_ms, mask_ms, cv_ms, pyramid_ms;
   double n_ours = 0, n_cv = 0;
   for (int i = -3; i < iterations; ++i) {  // 3 warm-up rounds
     const cv::Mat& f = frames[static_cast<std::size_t>((i + 3) % static_cast<int>(frames.size()))];
@@ -80,7 +86,10 @@ int bench_features(const st::bench::Options& opt) {
     const double t2 = st::bench::now_ms();
     cv_orb->detectAndCompute(f, cv::noArray(), kps, desc);
     const double t3 = st::bench::now_ms();
+    pyramid.build(view);
+    const double t4 = st::bench::now_ms();
     if (i < 0) continue;
+    pyramid_ms.push_back(t4 - t3);
     mask_ms.push_back(t1 - t0);
     ours_extract_ms.push_back(t2 - t1);
     ours_ms.push_back(t2 - t0);
@@ -94,6 +103,7 @@ int bench_features(const st::bench::Options& opt) {
   st::bench::report(opt, {"features.orb_frontend (mask+extract)", ours_ms, "cv::ORB detectAndCompute", cv_ms, note});
   st::bench::report(opt, {"features.orb_extract", ours_extract_ms, "", {}, ""});
   st::bench::report(opt, {"features.valid_mask", mask_ms, "", {}, ""});
+  st::bench::report(opt, {"features.pyramid (part of extract)", pyramid_ms, "", {}, ""});
   return 0;
 }
 

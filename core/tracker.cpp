@@ -1,0 +1,235 @@
+// Tracker facade, configuration checks and the per-frame dispatch.
+#include "core/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "core/capacity.h"
+#include "core/tracker_impl.h"
+
+namespace st {
+
+const char* to_string(TrackState s) {
+  switch (s) {
+    case TrackState::kInitialised: return "initialised";
+    case TrackState::kTracking: return "tracking";
+    case TrackState::kRelocalised: return "relocalised";
+    case TrackState::kLost: return "lost";
+  }
+  return "?";
+}
+
+const char* to_string(Stage s) {
+  switch (s) {
+    case Stage::kPyramid: return "pyramid";
+    case Stage::kRaster: return "raster";
+    case Stage::kDetect: return "detect";
+    case Stage::kDescribe: return "describe";
+    case Stage::kMatch: return "match";
+    case Stage::kPose: return "pose";
+    case Stage::kMap: return "map";
+    case Stage::kReloc: return "reloc";
+    case Stage::kTotal: return "total";
+    case Stage::kCount: break;
+  }
+  return "?";
+}
+
+namespace {
+
+Status check_config(const TrackerConfig& c, const CameraModel& camera) {
+  const auto err = [](const std::string& m) { return Status(make_error("tracker config: " + m)); };
+  if (c.width <= 0 || c.height <= 0 || c.width > kMaxImageWidth || c.height > kMaxImageHeight)
+    return err("frame size " + std::to_string(c.width) + "x" + std::to_string(c.height) +
+               " outside [1, " + std::to_string(kMaxImageWidth) + "]x[1, " +
+               std::to_string(kMaxImageHeight) + "]");
+  const Status cam = CameraModel::validate(camera.pinhole(), camera.distortion());
+  if (!cam.ok()) return err("camera: " + cam.message());
+  if (camera.pinhole().width != c.width || camera.pinhole().height != c.height)
+    return err("calibration size " + std::to_string(camera.pinhole().width) + "x" +
+               std::to_string(camera.pinhole().height) + " differs from the frame size");
+  if (c.n_features < 50 || c.n_features > kMaxKeypoints)
+    return err("n_features " + std::to_string(c.n_features) + " outside [50, " +
+               std::to_string(kMaxKeypoints) + "]");
+  if (c.max_keyframes < 2 || c.max_keyframes > kMaxKeyframes)
+    return err("max_keyframes " + std::to_string(c.max_keyframes) + " outside [2, " +
+               std::to_string(kMaxKeyframes) + "]");
+  if (c.max_map_points < c.n_features || c.max_map_points > kMaxMapPoints)
+    return err("max_map_points " + std::to_string(c.max_map_points) + " outside [n_features, " +
+               std::to_string(kMaxMapPoints) + "]");
+  if (c.raster_downscale != 1 && c.raster_downscale != 2 && c.raster_downscale != 4)
+    return err("raster_downscale must be 1, 2 or 4");
+  if (c.mask_margin_px < 0 || c.mask_margin_px > 256) return err("mask_margin_px outside [0, 256]");
+  if (c.min_inliers < 6) return err("min_inliers must be >= 6 (a pose has 6 degrees of freedom)");
+  if (!(c.min_inlier_ratio >= 0 && c.min_inlier_ratio <= 1) || !(c.min_mask_agreement >= 0 && c.min_mask_agreement <= 1))
+    return err("min_inlier_ratio and min_mask_agreement must be in [0, 1]");
+  if (!(c.max_rms_px > 0) || !(c.max_jump_deg > 0) || !(c.max_jump_mm > 0))
+    return err("max_rms_px, max_jump_deg and max_jump_mm must be positive");
+  if (!(c.search_radius_px > 0.f) || !(c.wide_radius_px >= c.search_radius_px) || !(c.refine_radius_px > 0.f))
+    return err("search radii must be positive and wide_radius_px >= search_radius_px");
+  if (c.max_hamming < 1 || c.max_hamming > 256) return err("max_hamming outside [1, 256]");
+  if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
+      c.min_spread_cells < 0 || c.min_spread_cells > 16)
+    return err("relocalisation settings out of range");
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
+                              const SE3& T_camera_model_init) {
+  if (Status s = check_config(config, camera); !s.ok()) return s;
+  if (mesh.triangle_count() <= 0) return make_error("tracker: the mesh has no triangles");
+  if (!T_camera_model_init.all_finite()) return make_error("tracker: T_camera_model_init is not finite");
+  config_ = config;
+  camera_ = camera;
+  K_ = camera.pinhole();
+  distorted_ = !camera.distortion().is_zero();
+  T_init_ = T_camera_model_init;
+  RasterConfig rc;
+  rc.width = config.width;
+  rc.height = config.height;
+  rc.downscale = config.raster_downscale;
+  if (Status s = raster_.configure(mesh, rc); !s.ok()) return make_error("tracker: raster: " + s.message());
+  if (Status s = valid_mask_.configure(ValidMaskConfig{}, config.width, config.height); !s.ok())
+    return make_error("tracker: valid mask: " + s.message());
+  OrbConfig oc;
+  oc.n_features = config.n_features;
+  oc.levels = config.levels;
+  oc.scale_factor = config.scale_factor;
+  oc.organ_margin_px = config.mask_margin_px;
+  if (Status s = orb_.configure(oc, config.width, config.height); !s.ok()) return make_error("tracker: ORB: " + s.message());
+  MatchConfig mc;
+  mc.max_distance = config.max_hamming;
+  if (Status s = matcher_.configure(mc); !s.ok()) return make_error("tracker: matcher: " + s.message());
+  if (Status s = grid_.configure(config.width, config.height); !s.ok()) return make_error("tracker: grid: " + s.message());
+  if (Status s = solver_.configure(kMaxKeypoints); !s.ok()) return make_error("tracker: pose: " + s.message());
+  PnpRansacOptions ro;
+  ro.min_inliers = config.min_inliers;
+  ro.max_iterations = 300;
+  if (Status s = ransac_.configure(kMaxKeypoints, ro); !s.ok()) return make_error("tracker: RANSAC: " + s.message());
+  if (Status s = map_.configure(config.max_map_points, config.max_keyframes, kMaxKeypoints); !s.ok())
+    return make_error("tracker: " + s.message());
+  features_ = std::make_unique<FeatureSet>();
+  train_ = std::make_unique<FeatureSet>();
+  const auto nk = static_cast<std::size_t>(kMaxKeypoints);
+  const auto np = static_cast<std::size_t>(config.max_map_points);
+  kp_ideal_.assign(nk, Vec2::Zero());
+  kp_inlier_.assign(nk, 0);
+  match_of_query_.assign(nk, -1);
+  train_point_.assign(nk, -1);
+  corr_p_.assign(nk, Vec3::Zero());
+  corr_px_.assign(nk, Vec2::Zero());
+  corr_info_.assign(nk, 1.0);
+  corr_point_.assign(nk, -1);
+  corr_kp_.assign(nk, -1);
+  corr_inlier_.assign(nk, 0);
+  local_ids_.assign(np, -1);
+  projected_.assign(np, ProjectedPoint{});
+  match_of_point_.assign(np, -1);
+  dist_of_point_.assign(np, 0);
+  octave_info_.assign(static_cast<std::size_t>(kMaxPyramidLevels), 1.0);
+  octave_scale_.assign(static_cast<std::size_t>(kMaxPyramidLevels), 1.f);
+  for (int o = 0; o < kMaxPyramidLevels; ++o) {
+    octave_info_[static_cast<std::size_t>(o)] = octave_information(o, static_cast<double>(config.scale_factor));
+    octave_scale_[static_cast<std::size_t>(o)] = std::pow(config.scale_factor, static_cast<float>(o));
+  }
+  started_ = false;
+  return Status::Ok();
+}
+
+void TrackerImpl::start() {
+  map_.clear();
+  started_ = true;
+  initialised_ = false;
+  lost_ = false;
+  raster_valid_ = false;
+  T_last_ = T_init_;
+  velocity_ = SE3();
+  lost_frames_ = strict_frames_left_ = 0;
+  ref_keyframe_ = -1;
+  reloc_cursor_ = 0;
+}
+
+TrackResult TrackerImpl::step(GrayView luma, int frame_index) {
+  TrackResult r;
+  const double t0 = now_ms();
+  if (!started_ || luma.empty() || luma.width != config_.width || luma.height != config_.height) {
+    r.map_points = map_.point_count();
+    r.keyframes = map_.keyframe_count();
+    return r;  // defined degraded state: lost, no pose
+  }
+  valid_view_ = valid_mask_.build(luma);
+  const double t_valid = now_ms();
+  if (!initialised_) {
+    r = initialise(luma, frame_index);
+  } else if (lost_) {
+    r = relocalise(luma, frame_index);
+  } else {
+    r = track(luma, frame_index);
+  }
+  r.times_ms[static_cast<int>(Stage::kPyramid)] += t_valid - t0;  // valid mask
+  r.map_points = map_.point_count();
+  r.keyframes = map_.keyframe_count();
+  if (config_.now_ns) r.times_ms[static_cast<int>(Stage::kTotal)] = now_ms() - t0;
+  return r;
+}
+
+double TrackerImpl::now_ms() const {
+  return config_.now_ns ? static_cast<double>(config_.now_ns()) * 1e-6 : 0.0;
+}
+
+void TrackerImpl::lap(Stage s, double* t_last_ms, TrackResult* r) const {
+  if (!config_.now_ns) return;
+  const double t = now_ms();
+  r->times_ms[static_cast<int>(s)] += t - *t_last_ms;
+  *t_last_ms = t;
+}
+
+void TrackerImpl::render_at(const SE3& T_camera_model) {
+  raster_.render(T_camera_model, K_);
+  raster_pose_ = T_camera_model;
+  raster_valid_ = true;
+}
+
+// ---- facade ----
+
+Tracker::Tracker() = default;
+Tracker::~Tracker() { delete impl_; }
+
+Status Tracker::configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
+                          const SE3& T_camera_model_init) {
+  delete impl_;
+  impl_ = new TrackerImpl();
+  Status s = impl_->configure(config, mesh, camera, T_camera_model_init);
+  if (!s.ok()) {
+    delete impl_;
+    impl_ = nullptr;
+  }
+  return s;
+}
+
+void Tracker::start() {
+  if (impl_) impl_->start();
+}
+
+TrackResult Tracker::step(GrayView luma, int frame_index) {
+  if (!impl_) return TrackResult{};
+  return impl_->step(luma, frame_index);
+}
+
+void Tracker::stop() {
+  if (impl_) impl_->stop();
+}
+
+int Tracker::map_points(Vec3* p_model, int capacity) const {
+  if (!impl_) return 0;
+  const TrackingMap& m = impl_->map();
+  int n = 0;
+  for (int id = 0; id < m.point_high_water() && n < capacity; ++id)
+    if (m.point(id).alive) p_model[n++] = m.point(id).p_model;
+  return n;
+}
+
+}  // namespace st

@@ -1,0 +1,125 @@
+// TrackerImpl: the state and per-frame stages behind core/tracker.h.
+// Internal header (core/ only). Every buffer is sized in configure(); the
+// stage functions (tracker_track.cpp, tracker_map.cpp, tracker_reloc.cpp)
+// allocate nothing. Thread: the tracking thread.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/feature_grid.h"
+#include "core/feature_set.h"
+#include "core/map.h"
+#include "core/orb_extractor.h"
+#include "core/orb_matcher.h"
+#include "core/pnp_ransac.h"
+#include "core/pose_solver.h"
+#include "core/rasterizer.h"
+#include "core/tracker.h"
+#include "core/valid_mask.h"
+
+namespace st {
+
+// Quality gates of one frame (normal, or stricter after relocalisation).
+struct QualityGates {
+  int min_inliers = 0;
+  double min_inlier_ratio = 0;
+  double max_rms_px = 0;
+  double min_mask_agreement = 0;
+  int min_spread_cells = 0;
+};
+
+// Outcome of one pose estimate from correspondences, before the state decision.
+struct PoseEstimate {
+  bool solved = false;
+  SE3 T_camera_model;
+  int matches = 0, inliers = 0;
+  double rms_px = 0, mask_agreement = 0;
+  double whitened_rms = 0;  // sqrt(mean(info * |r|^2)) over the inliers: level-0 pixels
+  int spread_cells = 0;
+  double mean_depth_mm = 100.0;  // of the inliers at the final pose
+};
+
+class TrackerImpl {
+ public:
+  Status configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
+                   const SE3& T_camera_model_init);
+  void start();
+  void stop() { started_ = false; }
+  TrackResult step(GrayView luma, int frame_index);
+  const TrackingMap& map() const { return map_; }
+
+ private:
+  // Stages (tracker_track.cpp).
+  bool extract(GrayView luma, bool with_organ_mask, TrackResult* r);
+  int select_local_map(const SE3& T_camera_model, bool check_occlusion);
+  int match_local_map(float radius_px);
+  bool solve_pose(SE3* T_camera_model, PoseEstimate* e);
+  bool track_from(const SE3& T_predicted, float first_radius_px, PoseEstimate* e, TrackResult* r);
+  void measure_final(PoseEstimate* e);
+  bool passes(const PoseEstimate& e, const QualityGates& g) const;
+  QualityGates gates(bool strict) const;
+  TrackResult track(GrayView luma, int frame_index);
+  void accept(const PoseEstimate& e, int frame_index, TrackState state, TrackResult* r);
+  void fill_measures(const PoseEstimate& e, TrackResult* r) const;
+  // Map (tracker_map.cpp).
+  TrackResult initialise(GrayView luma, int frame_index);
+  bool surface_point(const Vec2& px_ideal, Vec3* p_model) const;
+  int add_keyframe(const SE3& T_camera_model, int frame_index, bool link_inliers);
+  bool need_keyframe(const PoseEstimate& e);
+  void update_counters(int frame_index);
+  // Relocalisation (tracker_reloc.cpp).
+  TrackResult relocalise(GrayView luma, int frame_index);
+  bool reloc_with_keyframe(int keyframe_id, PoseEstimate* e, TrackResult* r);
+  void render_at(const SE3& T_camera_model);
+  double now_ms() const;
+  void lap(Stage s, double* t_last_ms, TrackResult* r) const;
+
+  TrackerConfig config_;
+  CameraModel camera_;
+  Pinhole K_;
+  bool distorted_ = false;
+  SE3 T_init_;
+  MeshRasterizer raster_;
+  bool raster_valid_ = false;  // raster_ holds a render at raster_pose_
+  SE3 raster_pose_;
+  ValidMaskBuilder valid_mask_;
+  GrayView valid_view_;
+  OrbExtractor orb_;
+  OrbMatcher matcher_;
+  FeatureGrid grid_;
+  PoseSolver solver_;
+  PnpRansac ransac_;
+  TrackingMap map_;
+  std::unique_ptr<FeatureSet> features_, train_;
+
+  // Per frame, sized in configure().
+  std::vector<Vec2> kp_ideal_;            // undistorted keypoints
+  std::vector<std::uint8_t> kp_inlier_;   // keypoint is a pose inlier this frame
+  std::vector<std::int32_t> local_ids_;   // local map: point ids
+  std::vector<ProjectedPoint> projected_; // local map: projections at the current pose
+  std::vector<std::int32_t> match_of_point_, dist_of_point_;
+  std::vector<std::int32_t> match_of_query_;
+  std::vector<std::int32_t> train_point_;  // relocalisation: map point of each train_ keypoint
+  std::vector<Vec3> corr_p_;
+  std::vector<Vec2> corr_px_;
+  std::vector<double> corr_info_;
+  std::vector<std::int32_t> corr_point_, corr_kp_;
+  std::vector<std::uint8_t> corr_inlier_;
+  std::vector<double> octave_info_;       // per octave: 1 / sigma^2
+  std::vector<float> octave_scale_;       // per octave: scale_factor^octave
+  int local_count_ = 0, corr_count_ = 0;
+
+  // Tracking state.
+  bool started_ = false, initialised_ = false, lost_ = false;
+  SE3 T_last_, velocity_;        // velocity_: T_last * T_previous^-1 (left increment per frame)
+  int lost_frames_ = 0;
+  int strict_frames_left_ = 0;
+  int ref_keyframe_ = -1;
+  int reloc_cursor_ = 0;
+  SE3 T_last_keyframe_;
+};
+
+}  // namespace st

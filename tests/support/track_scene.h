@@ -1,0 +1,44 @@
+// A small textured renderer of a mesh for the tracker tests, until the real
+// simulator (tools/sim) provides sequences: the rasteriser's depth gives the
+// model point of every pixel, whose colour is a 3D value-noise texture
+// (fixed to the organ, so it moves with it) times a Lambert headlight term;
+// the background is dark and flat. Test-only: allocates freely.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/image.h"
+#include "core/mesh.h"
+#include "core/rasterizer.h"
+#include "core/se3.h"
+
+namespace st::test {
+
+// The CT liver (../shared/data/liver/liver.ply); FAILs the test if missing.
+Mesh load_liver_for_tracking();
+
+class TrackSceneRenderer {
+ public:
+  // K: the ideal pinhole of the frames (no distortion).
+  void configure(const Mesh& mesh, const Pinhole& K);
+  // Luma of the textured mesh seen from T_camera_model (K.width x K.height).
+  void render(const SE3& T_camera_model, Image<std::uint8_t>* luma);
+
+ private:
+  MeshRasterizer raster_;
+  Pinhole K_;
+  std::vector<Vec3> normal_model_;  // per triangle, unit, outward
+  Image<std::uint8_t> tmp_;
+};
+
+// A smooth camera path around the liver: the camera circles a point near
+// the organ's centre at 230-260 mm (the surface ~120-170 mm away), swinging
+// +-25 degrees in azimuth and +-10 in elevation with a slow roll.
+std::vector<SE3> liver_orbit(const Mesh& mesh, int frames);
+
+// Pinhole of the test frames: 640x360, fx = fy = 500.
+inline Pinhole track_test_pinhole() { return {500.0, 500.0, 319.5, 179.5, 640, 360}; }
+
+}  // namespace st::test
