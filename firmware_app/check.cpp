@@ -9,6 +9,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <limits>
+#include <string>
 
 #include "core/camera.h"
 #include "core/rasterizer.h"
@@ -21,6 +22,9 @@ namespace {
 
 class Report {
  public:
+  // quiet: print nothing, keep the first error (a replay's pre-flight check).
+  explicit Report(bool quiet = false) : quiet_(quiet) {}
+  const std::string& first_error() const { return first_error_; }
   void line(const char* topic, const char* fmt, ...) __attribute__((format(printf, 3, 4))) {
     va_list a;
     va_start(a, fmt);
@@ -38,6 +42,14 @@ class Report {
     ++errors_;
     va_list a;
     va_start(a, fmt);
+    if (first_error_.empty()) {
+      char buf[1024];
+      va_list b;
+      va_copy(b, a);
+      std::vsnprintf(buf, sizeof buf, fmt, b);
+      va_end(b);
+      first_error_ = std::string(topic) + ": " + buf;
+    }
     emit(topic, "ERROR: ", fmt, a);
     va_end(a);
   }
@@ -51,12 +63,15 @@ class Report {
   }
 
  private:
-  static void emit(const char* topic, const char* kind, const char* fmt, va_list a) {
+  void emit(const char* topic, const char* kind, const char* fmt, va_list a) const {
+    if (quiet_) return;
     std::printf("%-12s %s", topic, kind);
     std::vprintf(fmt, a);
     std::printf("\n");
   }
   int errors_ = 0, warnings_ = 0;
+  bool quiet_ = false;
+  std::string first_error_;
 };
 
 void report_video(const LoadedSequence& s, Report& r) {
@@ -209,6 +224,18 @@ void report_markers(const LoadedSequence& s, Report& r) {
 }
 
 }  // namespace
+
+Status check_sequence_for_replay(const LoadedSequence& s) {
+  Report r(/*quiet=*/true);
+  report_mesh(s, r);
+  report_camera(s.config, r);
+  report_pose(s.config, r);
+  report_projection(s, r);
+  report_groundtruth(s, r);
+  report_markers(s, r);
+  if (!r.first_error().empty()) return make_error(r.first_error());
+  return Status::Ok();
+}
 
 int run_check(Args args) {
   if (args.size() != 1) {

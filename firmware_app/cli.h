@@ -5,6 +5,9 @@
 #include <span>
 #include <string_view>
 
+#include "core/result.h"
+#include "hal/sequence_loader.h"
+
 namespace st::app {
 
 using Args = std::span<char* const>;
@@ -18,5 +21,13 @@ struct Command {
 
 // scopetrack --check DIR: validates a sequence folder (firmware_app/check.cpp).
 int run_check(Args args);
+// The same validation as --check, silent, for a sequence that is about to be
+// replayed, except the video scan: a replay reads the video as it goes and
+// reports a broken one at the frame where it breaks. The first error, if any.
+Status check_sequence_for_replay(const LoadedSequence& sequence);
+
+// scopetrack --sequence DIR --out DIR [...]: replay (firmware_app/replay_command.cpp).
+// Options after DIR: --out DIR (required), --realtime, --no-mask, --ring N.
+int run_replay(Args args);
 
 }  // namespace st::app

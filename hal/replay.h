@@ -1,0 +1,76 @@
+// Replay of a sequence's video through a per-frame processor (the tracker),
+// on three threads: capture (hal/frame_capture.h) -> tracking (the calling
+// thread) -> writer (hal/run_writer.h). Writes into the output folder
+// trajectory.txt, frames.csv (streamed, flushed as rows come) and
+// summary.json (docs/sequence-format.md "Tracker output"), also when the
+// video breaks off: then summary.json covers the frames processed and
+// carries an "error" field.
+//
+// Memory does not grow with the sequence: frames live in the capture ring,
+// rows pass through fixed queues, latencies go into a fixed histogram. The
+// tracking thread's heap allocations between FrameProcessor::start() and
+// the end of the stream are counted and reported
+// ("tracking_thread_allocations": 0 is the requirement).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/image.h"
+#include "core/result.h"
+#include "core/tracker.h"
+#include "hal/sequence_loader.h"
+
+namespace st {
+
+// What the tracking thread runs. start(), step() and stop() are called on
+// the tracking thread; step() must not allocate (it is counted).
+class FrameProcessor {
+ public:
+  virtual ~FrameProcessor() = default;
+  virtual void start() = 0;
+  virtual TrackResult step(GrayView luma, int frame_index) = 0;
+  virtual void stop() = 0;
+  // After stop(), on the calling thread: more numeric fields for
+  // summary.json (e.g. mean stage times). May allocate.
+  virtual void append_summary(std::vector<std::pair<std::string, double>>* fields) const { (void)fields; }
+};
+
+struct ReplayOptions {
+  std::filesystem::path out_dir;
+  bool realtime = false;   // pace frames to the sequence's fps; else as fast as possible
+  bool progress = false;   // progress line on stderr (the caller checks isatty)
+  int ring_slots = 6;      // capture ring: frames queued or in use at once
+  // More numeric fields for summary.json (configuration, for the record).
+  std::vector<std::pair<std::string, double>> summary_extra;
+};
+
+struct ReplayStats {
+  int frames = 0;  // frames processed (rows in frames.csv)
+  int tracked = 0, lost = 0, initialised = 0, relocalised = 0;  // tracked: frames with a pose
+  double wall_s = 0, fps = 0;
+  double mean_latency_ms = 0, p99_latency_ms = 0, max_latency_ms = 0;
+  double peak_rss_mb = 0;
+  std::int64_t tracking_thread_allocations = 0;
+  int writer_stalls = 0;  // frames on which the tracking thread waited for the writer
+  std::string error;      // empty: the whole video was processed and written
+};
+
+// Errors before the first frame (cannot open the video, cannot create the
+// output) are returned as Error and nothing is tracked. Errors during the
+// replay (truncated video, read or write error) end the replay: the result
+// then holds the stats of what was processed and stats.error says what
+// happened; summary.json is written either way.
+Result<ReplayStats> run_replay(const LoadedSequence& sequence, FrameProcessor& processor,
+                               const ReplayOptions& options);
+
+// summary.json text for stats (fields of the spec + the replay's own).
+std::string format_replay_summary(const ReplayStats& stats, const ReplayOptions& options);
+
+// Frames in a Y4M file estimated from its size (0 for a pipe or unknown).
+int estimate_frame_count(const LoadedSequence& sequence);
+
+}  // namespace st

@@ -1,0 +1,164 @@
+// Stage "track": Tracker::step over a whole sequence, per-stage times from
+// TrackResult::times_ms (the tracker's injected monotonic clock) and the
+// step's wall time measured outside, median and p99 over frames. Frames are
+// read between steps (not timed). The sequence is simulated on first use
+// (scopetrack-sim beside this binary, orbit 1280x720, 300 frames, cached in
+// the temp folder) unless --sequence DIR is given.
+//   scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask] [--log N]
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bench.h"
+#include "core/tracker.h"
+#include "hal/sequence_loader.h"
+#include "hal/y4m_reader.h"
+#include "platform/alloc_counter.h"
+#include "platform/clock.h"
+
+namespace st::bench {
+namespace {
+
+struct TrackArgs {
+  std::string sequence, scenario = "orbit", size = "1280x720";
+  int frames = 300;
+  int log_frames = 0;  // per-frame diagnostics on stderr for the first N frames
+  bool use_mask = true;
+};
+
+bool parse_track_args(const Options& opt, TrackArgs* a) {
+  for (std::size_t i = 0; i < opt.args.size(); ++i) {
+    const std::string& k = opt.args[i];
+    const bool v = i + 1 < opt.args.size();
+    if (k == "--sequence" && v) a->sequence = opt.args[++i];
+    else if (k == "--scenario" && v) a->scenario = opt.args[++i];
+    else if (k == "--size" && v) a->size = opt.args[++i];
+    else if (k == "--frames" && v) a->frames = std::atoi(opt.args[++i].c_str());
+    else if (k == "--log" && v) a->log_frames = std::atoi(opt.args[++i].c_str());
+    else if (k == "--no-mask") a->use_mask = false;
+    else return false;
+  }
+  return a->frames > 0;
+}
+
+// A simulated sequence in the temp folder (made once, then reused).
+Result<std::filesystem::path> simulated_sequence(const Options& opt, const TrackArgs& a) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("scopetrack-bench-track-" + a.scenario + "-" + a.size + "-" + std::to_string(a.frames));
+  std::error_code ec;
+  if (std::filesystem::exists(dir / "sequence.yaml", ec)) return dir;
+  const auto sim = std::filesystem::read_symlink("/proc/self/exe", ec).parent_path() / "scopetrack-sim";
+  if (!std::filesystem::exists(sim, ec)) return make_error("scopetrack-sim not found beside the bench: " + sim.string());
+  const std::string cmd = "'" + sim.string() + "' --scenario " + a.scenario + " --size " + a.size + " --frames " +
+                          std::to_string(a.frames) + " --seed 1 --out '" + dir.string() + "' >/dev/null";
+  info(opt, "simulating: " + cmd);
+  if (std::system(cmd.c_str()) != 0) {
+    std::filesystem::remove_all(dir, ec);
+    return make_error("the simulator failed: " + cmd);
+  }
+  return dir;
+}
+
+void log_frame(const Options& opt, int index, const TrackResult& r) {
+  char line[256];
+  std::snprintf(line, sizeof line,
+                "frame %d %s: features %d matches %d inliers %d ratio %.2f rms %.2f px mask %.2f jump %.2f deg %.2f mm"
+                " local map %d, map %d points %d keyframes",
+                index, to_string(r.state), r.features, r.matches, r.inliers, r.inlier_ratio, r.rms_px,
+                r.mask_agreement, r.pose_jump_deg, r.pose_jump_mm, r.local_map, r.map_points, r.keyframes);
+  info(opt, line);
+}
+
+struct TrackRun {
+  std::vector<StageTimes> stages;
+  std::vector<double> step_ms;
+  int lost = 0, frames = 0;
+  std::uint64_t allocations = 0;
+};
+
+Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, const TrackArgs& a) {
+  TrackerConfig cfg;
+  cfg.width = seq.config.width;
+  cfg.height = seq.config.height;
+  cfg.use_mask = a.use_mask;
+  cfg.now_ns = &platform::monotonic_ns;
+  auto tracker = std::make_unique<Tracker>();
+  const CameraModel cam(seq.config.K, seq.config.distortion);
+  if (Status s = tracker->configure(cfg, seq.mesh, cam, seq.config.T_camera_model_init); !s) return Error{s.message()};
+  Y4mReader reader;
+  if (Status s = reader.open(seq.video_path, 2); !s) return Error{s.message()};
+  TrackRun run;
+  run.stages.reserve(100000);
+  run.step_ms.reserve(100000);
+  tracker->start();
+  FrameRef f;
+  std::uint64_t allocs = 0;
+  while (reader.read_frame(&f) == ReadResult::kFrame && run.step_ms.size() < run.step_ms.capacity()) {
+    const std::uint64_t a0 = platform::thread_allocation_count();
+    const double t0 = now_ms();
+    const TrackResult r = tracker->step(f.y, f.index);
+    run.step_ms.push_back(now_ms() - t0);
+    allocs += platform::thread_allocation_count() - a0;
+    run.stages.push_back(r.times_ms);
+    run.lost += r.state == TrackState::kLost ? 1 : 0;
+    if (f.index < a.log_frames) log_frame(opt, f.index, r);
+  }
+  tracker->stop();
+  if (!reader.error().empty()) return make_error(reader.error());
+  run.frames = static_cast<int>(run.step_ms.size());
+  run.allocations = allocs;
+  return run;
+}
+
+void report_stages(const Options& opt, const TrackRun& run) {
+  for (int s = 0; s < static_cast<int>(Stage::kCount); ++s) {
+    Row row;
+    row.name = std::string("track ") + to_string(static_cast<Stage>(s));
+    int ran = 0;
+    for (const StageTimes& t : run.stages) {
+      const double ms = t[static_cast<std::size_t>(s)];
+      ran += ms > 0 ? 1 : 0;
+      row.samples_ms.push_back(ms);
+    }
+    if (ran == 0) continue;
+    if (ran < run.frames) row.note = "ran on " + std::to_string(ran) + " of " + std::to_string(run.frames) + " frames (0 elsewhere)";
+    report(opt, row);
+  }
+  Row wall;
+  wall.name = "track step (wall, outside)";
+  wall.samples_ms = run.step_ms;
+  wall.note = std::to_string(run.frames) + " frames, " + std::to_string(run.lost) + " lost, " +
+              std::to_string(run.allocations) + " heap allocations in step()";
+  report(opt, wall);
+}
+
+int bench_track(const Options& opt) {
+  TrackArgs a;
+  if (!parse_track_args(opt, &a)) {
+    std::fprintf(stderr, "usage: scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask] [--log N]\n");
+    return 2;
+  }
+  std::filesystem::path dir = a.sequence;
+  if (dir.empty()) {
+    auto sim = simulated_sequence(opt, a);
+    if (!sim) return std::fprintf(stderr, "bench track: %s\n", sim.message().c_str()), 1;
+    dir = sim.value();
+  }
+  auto seq = load_sequence(dir);
+  if (!seq) return std::fprintf(stderr, "bench track: %s\n", seq.message().c_str()), 1;
+  info(opt, "sequence " + dir.string() + (a.use_mask ? "" : " (no mask)"));
+  auto run = run_tracker(opt, seq.value(), a);
+  if (!run) return std::fprintf(stderr, "bench track: %s\n", run.message().c_str()), 1;
+  report_stages(opt, run.value());
+  return 0;
+}
+
+}  // namespace
+
+SCOPETRACK_BENCH_STAGE("track", "Tracker::step per stage over a (simulated) sequence", bench_track);
+
+}  // namespace st::bench
