@@ -3,6 +3,7 @@
 // (cv::fillConvexPoly of every projected front-facing triangle into a mask,
 // no depth, no ids), timed in the same run.
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -148,6 +149,16 @@ int run(const Options& opt) {
   double coverage = 0, base_coverage = 0;
   const SE3 T = bench_pose(liver, &coverage);
   RasterStats stats;
+  // "raster only DS": just our render at 1/DS (for profilers), no baseline.
+  if (opt.args.size() == 2 && opt.args[0] == "only") {
+    const int ds = std::atoi(opt.args[1].c_str());
+    Row r;
+    r.name = "raster 1/" + std::to_string(ds) + " mask+depth+id";
+    r.samples_ms = time_ours(liver, T, ds, true, n, &stats, &coverage);
+    r.note = describe(stats, coverage);
+    report(opt, r);
+    return 0;
+  }
   Row row;
   row.name = "raster 1280x720 mask+depth+id";
   row.samples_ms = time_ours(liver, T, 1, true, n, &stats, &coverage);
