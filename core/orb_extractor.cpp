@@ -81,6 +81,7 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   blocks_y_ = ceil_div(height, kBlock);
   block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 3, 0);
   chunk_ok_.assign(static_cast<std::size_t>(height) * (ceil_div(width, kBlock) + 1), 0);
+  chunk_relaxed_.assign(chunk_ok_.size(), 0);
   return Status::Ok();
 }
 
@@ -193,7 +194,8 @@ bool OrbExtractor::inside_masks(int level, int x, int y) const {
   return true;
 }
 
-int OrbExtractor::filter_candidates(int level, int n_fast) {
+// Pass 1 (strict threshold): corners inside the masks; marks their cells.
+int OrbExtractor::filter_strict(int level, int n_fast) {
   const GrayView img = pyramid_.level(level);
   const int cell = config_.threshold_cell_px;
   const int cells_x = ceil_div(img.width, cell);
@@ -204,18 +206,47 @@ int OrbExtractor::filter_candidates(int level, int n_fast) {
     const FastCorner& c = fast_out_[static_cast<std::size_t>(i)];
     if (use_chunks_ && !inside_masks(level, c.x, c.y)) continue;
     const std::uint32_t ci = static_cast<std::uint32_t>((c.y / cell) * cells_x + c.x / cell);
-    if (c.score > config_.fast_threshold_strict) cell_has_strict_[ci] = 1;
+    cell_has_strict_[ci] = 1;
     cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score, 0};
   }
-  stats_.masked_corners += n;
-  int kept = 0;
-  for (int i = 0; i < n; ++i) {
-    const Candidate& c = cand_[static_cast<std::size_t>(i)];
-    if (c.score > config_.fast_threshold_strict || !cell_has_strict_[c.cell])
-      cand_[static_cast<std::size_t>(kept++)] = c;
+  return n;
+}
+
+// Chunks for pass 2: allowed by the masks and overlapping a threshold cell
+// without a strict corner (cells need not align with the 16-pixel chunks).
+void OrbExtractor::build_relaxed_chunk_map(int level) {
+  const GrayView img = pyramid_.level(level);
+  const int cell = config_.threshold_cell_px;
+  const int cells_x = ceil_div(img.width, cell);
+  const int chunks = ceil_div(img.width, kBlock);
+  for (int y = 0; y < img.height; ++y) {
+    const std::uint8_t* has = cell_has_strict_.data() + static_cast<std::ptrdiff_t>(y / cell) * cells_x;
+    const std::uint8_t* in = use_chunks_ ? chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks : nullptr;
+    std::uint8_t* out = chunk_relaxed_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+    for (int cx = 0; cx < chunks; ++cx) {
+      const int c0 = cx * kBlock / cell, c1 = std::min((cx * kBlock + kBlock - 1) / cell, cells_x - 1);
+      std::uint8_t need = 0;
+      for (int c = c0; c <= c1; ++c) need |= static_cast<std::uint8_t>(!has[c]);
+      out[cx] = static_cast<std::uint8_t>(need & (in ? in[cx] : 1));
+    }
   }
-  stats_.kept_corners += kept;
-  return kept;
+}
+
+// Pass 2 (relaxed threshold, only where needed): appends corners that are
+// not strict, lie in a cell without a strict corner and inside the masks.
+int OrbExtractor::filter_relaxed(int level, int n_fast, int n) {
+  const GrayView img = pyramid_.level(level);
+  const int cell = config_.threshold_cell_px;
+  const int cells_x = ceil_div(img.width, cell);
+  for (int i = 0; i < n_fast; ++i) {
+    const FastCorner& c = fast_out_[static_cast<std::size_t>(i)];
+    if (c.score > config_.fast_threshold_strict) continue;  // already in pass 1 (or masked)
+    const std::uint32_t ci = static_cast<std::uint32_t>((c.y / cell) * cells_x + c.x / cell);
+    if (cell_has_strict_[ci]) continue;
+    if (use_chunks_ && !inside_masks(level, c.x, c.y)) continue;
+    cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score, 0};
+  }
+  return n;
 }
 
 int OrbExtractor::spread(int level, int n, int target) {
@@ -307,12 +338,26 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
     const GrayView img = pyramid_.level(k);
     if (img.width <= 2 * config_.edge_border_px || img.height <= 2 * config_.edge_border_px) continue;
     if (use_chunks_) build_chunk_map(k);
-    const int n_fast = fast_.detect(img, config_.fast_threshold_relaxed, config_.edge_border_px,
-                                    use_chunks_ ? chunk_ok_.data() : nullptr,
-                                    ceil_div(img.width, kBlock), fast_out_.data(),
-                                    static_cast<int>(fast_out_.size()));
-    stats_.fast_corners += n_fast;
-    const int n_kept = filter_candidates(k, n_fast);
+    // Strict threshold everywhere, the relaxed one only in threshold cells
+    // where the strict one kept nothing: most of the frame is scored once,
+    // at the threshold where few pixels pass the cheap pre-test.
+    const int chunks = ceil_div(img.width, kBlock);
+    const int capacity = static_cast<int>(fast_out_.size());
+    const int n_strict = fast_.detect(img, config_.fast_threshold_strict, config_.edge_border_px,
+                                      use_chunks_ ? chunk_ok_.data() : nullptr, chunks,
+                                      fast_out_.data(), capacity);
+    const int n1 = filter_strict(k, n_strict);
+    int n_kept = n1;
+    int n_relaxed = 0;
+    if (config_.fast_threshold_relaxed < config_.fast_threshold_strict) {
+      build_relaxed_chunk_map(k);
+      n_relaxed = fast_.detect(img, config_.fast_threshold_relaxed, config_.edge_border_px,
+                               chunk_relaxed_.data(), chunks, fast_out_.data(), capacity);
+      n_kept = filter_relaxed(k, n_relaxed, n1);
+    }
+    stats_.fast_corners += n_strict + n_relaxed;
+    stats_.masked_corners += n_kept;
+    stats_.kept_corners += n_kept;
     const int n_pre = spread(k, n_kept, 2 * level_target_[k]);
     harris_keys(k, n_pre);
     const int n_spread = spread(k, n_pre, level_target_[k]);
