@@ -36,8 +36,11 @@ class ImagePyramid {
   struct ResizeTables {  // bilinear source index and 8-bit weight per output column/row
     std::vector<std::int32_t> x0, y0;
     std::vector<std::uint8_t> wx, wy;  // weight of the second sample, 0..128
+    std::vector<std::int16_t> wpair;   // per output column: (128 - wx, wx)
   };
   void resize_level(int k);
+  static void horizontal_blend(const std::uint16_t* tmp, const ResizeTables& t, std::uint8_t* out,
+                               int width);
   std::array<Image<std::uint8_t>, kMaxPyramidLevels> levels_img_;
   std::array<Image<std::uint8_t>, kMaxPyramidLevels> smooth_img_;
   std::array<ResizeTables, kMaxPyramidLevels> tables_;
