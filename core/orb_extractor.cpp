@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 namespace st {
@@ -82,6 +83,8 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 3, 0);
   chunk_ok_.assign(static_cast<std::size_t>(height) * (ceil_div(width, kBlock) + 1), 0);
   chunk_relaxed_.assign(chunk_ok_.size(), 0);
+  cell_need_.assign(static_cast<std::size_t>(ceil_div(height, c.threshold_cell_px) + 1) *
+                        (ceil_div(width, kBlock) + 1), 0);
   return Status::Ok();
 }
 
@@ -156,10 +159,16 @@ void OrbExtractor::build_chunk_map(int level) {
   const float s = pyramid_.scale(level);
   const int chunks = ceil_div(img.width, kBlock);
   const std::uint8_t* blocks = block_ok_.data();
+  int prev_by = -1;
   for (int y = 0; y < img.height; ++y) {
     const int by = std::clamp(static_cast<int>(to_level0(static_cast<float>(y), s)) / kBlock, 0,
                               blocks_y_ - 1);
     std::uint8_t* row = chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+    if (by == prev_by) {  // same block row as the row above: same chunks
+      std::memcpy(row, row - chunks, static_cast<std::size_t>(chunks));
+      continue;
+    }
+    prev_by = by;
     const std::uint8_t* brow = blocks + static_cast<std::ptrdiff_t>(by) * blocks_x_;
     for (int cx = 0; cx < chunks; ++cx) {
       const int bx0 = std::clamp(static_cast<int>(to_level0(static_cast<float>(cx * kBlock), s)) / kBlock, 0, blocks_x_ - 1);
@@ -219,16 +228,26 @@ void OrbExtractor::build_relaxed_chunk_map(int level) {
   const int cell = config_.threshold_cell_px;
   const int cells_x = ceil_div(img.width, cell);
   const int chunks = ceil_div(img.width, kBlock);
-  for (int y = 0; y < img.height; ++y) {
-    const std::uint8_t* has = cell_has_strict_.data() + static_cast<std::ptrdiff_t>(y / cell) * cells_x;
-    const std::uint8_t* in = use_chunks_ ? chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks : nullptr;
-    std::uint8_t* out = chunk_relaxed_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+  const int cells_y = ceil_div(img.height, cell);
+  std::uint8_t* need = cell_need_.data();
+  for (int cy = 0; cy < cells_y; ++cy) {  // per cell row: chunks touching a cell without strict
+    const std::uint8_t* has = cell_has_strict_.data() + static_cast<std::ptrdiff_t>(cy) * cells_x;
     for (int cx = 0; cx < chunks; ++cx) {
       const int c0 = cx * kBlock / cell, c1 = std::min((cx * kBlock + kBlock - 1) / cell, cells_x - 1);
-      std::uint8_t need = 0;
-      for (int c = c0; c <= c1; ++c) need |= static_cast<std::uint8_t>(!has[c]);
-      out[cx] = static_cast<std::uint8_t>(need & (in ? in[cx] : 1));
+      std::uint8_t n = 0;
+      for (int c = c0; c <= c1; ++c) n |= static_cast<std::uint8_t>(!has[c]);
+      need[static_cast<std::ptrdiff_t>(cy) * chunks + cx] = n;
     }
+  }
+  for (int y = 0; y < img.height; ++y) {
+    const std::uint8_t* nrow = need + static_cast<std::ptrdiff_t>(y / cell) * chunks;
+    std::uint8_t* out = chunk_relaxed_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+    if (!use_chunks_) {
+      std::memcpy(out, nrow, static_cast<std::size_t>(chunks));
+      continue;
+    }
+    const std::uint8_t* in = chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+    for (int cx = 0; cx < chunks; ++cx) out[cx] = static_cast<std::uint8_t>(nrow[cx] & in[cx]);
   }
 }
 

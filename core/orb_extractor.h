@@ -112,6 +112,7 @@ class OrbExtractor {
                                              // [1] scratch, [2] neighbourhood fully allowed
   std::vector<std::uint8_t> chunk_ok_;       // per level: rows x 16-pixel chunks
   std::vector<std::uint8_t> chunk_relaxed_;  // chunks the relaxed pass scores (same layout)
+  std::vector<std::uint8_t> cell_need_;      // per threshold-cell row x chunk: any cell without strict
   GrayView organ_;                           // dilated organ mask of this frame (or empty)
   GrayView valid_;                           // valid mask of this frame (or empty)
   int blocks_x_ = 0, blocks_y_ = 0;
