@@ -191,15 +191,48 @@ void ImagePyramid::horizontal_blend(const std::uint16_t* tmp, const ResizeTables
   }
 }
 
-bool ImagePyramid::build(GrayView image) {
+bool ImagePyramid::build_levels(GrayView image) {
   if (image.empty() || image.width != width_ || image.height != height_) return false;
   const ImageView<std::uint8_t> l0 = levels_img_[0].view();
   for (int y = 0; y < height_; ++y)
     std::memcpy(l0.row(y), image.row(y), static_cast<std::size_t>(width_));
   for (int k = 1; k < levels_; ++k) resize_level(k);
+  return true;
+}
+
+bool ImagePyramid::build(GrayView image) {
+  if (!build_levels(image)) return false;
   for (int k = 0; k < levels_; ++k)
     gaussian_blur7(levels_img_[k].cview(), smooth_img_[k].view(), blur_tmp_.data());
   return true;
+}
+
+// Same passes as gaussian_blur7, restricted to one tile: the vertical pass
+// covers the tile's columns plus 3 on each side (replicated at the level's
+// edges, as the whole-level blur does), so the result is identical.
+void ImagePyramid::smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x) {
+  const GrayView src = levels_img_[k].cview();
+  const ImageView<std::uint8_t> dst = smooth_img_[k].view();
+  const int w = src.width, h = src.height;
+  std::uint8_t* p_base = blur_tmp_.data() + 3;  // p_base[i] = column x0 + i of the tile
+  for (int ty = 0; ty * kSmoothTilePx < h; ++ty) {
+    for (int tx = 0; tx < tiles_x && tx * kSmoothTilePx < w; ++tx) {
+      if (!tiles[ty * tiles_x + tx]) continue;
+      const int x0 = tx * kSmoothTilePx, x1 = std::min(x0 + kSmoothTilePx, w);
+      const int cx0 = std::max(x0 - 3, 0), cx1 = std::min(x1 + 3, w);
+      const int y1 = std::min((ty + 1) * kSmoothTilePx, h);
+      for (int y = ty * kSmoothTilePx; y < y1; ++y) {
+        const std::uint8_t* rows[7];
+        for (int i = 0; i < 7; ++i) rows[i] = src.row(std::clamp(y + i - 3, 0, h - 1)) + cx0;
+        blur_vertical(rows, p_base + (cx0 - x0), cx1 - cx0);
+        if (x0 == 0)
+          for (int i = 1; i <= 3; ++i) p_base[-i] = p_base[0];
+        if (x1 == w)
+          for (int i = 1; i <= 3; ++i) p_base[w - 1 - x0 + i] = p_base[w - 1 - x0];
+        blur_horizontal(p_base, dst.row(y) + x0, x1 - x0);
+      }
+    }
+  }
 }
 
 }  // namespace st

@@ -24,6 +24,14 @@ class ImagePyramid {
   Status configure(int width, int height, int levels, float scale_factor);
   // image must be width x height (as configured); returns false otherwise.
   bool build(GrayView image);
+  // The levels only, without smoothing: smoothed(k) is then valid only in
+  // the tiles passed to smooth_tiles() afterwards. Allocates nothing.
+  bool build_levels(GrayView image);
+  // Smooths the kSmoothTilePx x kSmoothTilePx tiles of level k whose byte in
+  // tiles (tiles_x per row) is non-zero; bit-identical to the whole-level
+  // smoothing of build() there. Allocates nothing.
+  static constexpr int kSmoothTilePx = 32;
+  void smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x);
 
   int levels() const { return levels_; }
   float scale(int level) const { return scale_[level]; }  // level-k pixel * scale = level-0 pixel

@@ -83,6 +83,8 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 3, 0);
   chunk_ok_.assign(static_cast<std::size_t>(height) * (ceil_div(width, kBlock) + 1), 0);
   chunk_relaxed_.assign(chunk_ok_.size(), 0);
+  smooth_tiles_.assign(static_cast<std::size_t>(ceil_div(width, ImagePyramid::kSmoothTilePx)) *
+                           ceil_div(height, ImagePyramid::kSmoothTilePx), 0);
   cell_need_.assign(static_cast<std::size_t>(ceil_div(height, c.threshold_cell_px) + 1) *
                         (ceil_div(width, kBlock) + 1), 0);
   return Status::Ok();
@@ -327,7 +329,27 @@ void OrbExtractor::harris_keys(int level, int n) {
   }
 }
 
+// Smooths only the tiles of the level that the kept keypoints' patches
+// (radius kOrbPatchRadius) reach.
+void OrbExtractor::smooth_patches(int level, int n) {
+  const GrayView img = pyramid_.level(level);
+  constexpr int kTile = ImagePyramid::kSmoothTilePx;
+  const int tiles_x = ceil_div(img.width, kTile), tiles_y = ceil_div(img.height, kTile);
+  std::fill(smooth_tiles_.begin(), smooth_tiles_.begin() + tiles_x * tiles_y, 0);
+  for (int i = 0; i < n; ++i) {
+    const Candidate& c = cand_[static_cast<std::size_t>(i)];
+    const int tx0 = std::max(c.x - kOrbPatchRadius, 0) / kTile;
+    const int tx1 = std::min(c.x + kOrbPatchRadius, img.width - 1) / kTile;
+    const int ty0 = std::max(c.y - kOrbPatchRadius, 0) / kTile;
+    const int ty1 = std::min(c.y + kOrbPatchRadius, img.height - 1) / kTile;
+    for (int ty = ty0; ty <= ty1; ++ty)
+      for (int tx = tx0; tx <= tx1; ++tx) smooth_tiles_[static_cast<std::size_t>(ty * tiles_x + tx)] = 1;
+  }
+  pyramid_.smooth_tiles(level, smooth_tiles_.data(), tiles_x);
+}
+
 void OrbExtractor::describe(int level, int n, FeatureSet& out) {
+  smooth_patches(level, n);
   const GrayView img = pyramid_.level(level);
   const GrayView smooth = pyramid_.smoothed(level);
   const float s = pyramid_.scale(level);
@@ -349,7 +371,7 @@ void OrbExtractor::describe(int level, int n, FeatureSet& out) {
 bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_mask, FeatureSet& out) {
   out.clear();
   stats_ = OrbFrameStats{};
-  if (!pyramid_.build(image)) return false;
+  if (!pyramid_.build_levels(image)) return false;  // smoothing: per level, kept patches only
   out.width = width_;
   out.height = height_;
   prepare_masks(organ_mask, valid_mask);

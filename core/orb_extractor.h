@@ -96,6 +96,7 @@ class OrbExtractor {
   int filter_relaxed(int level, int n_fast, int n);
   int spread(int level, int n, int target);
   void harris_keys(int level, int n);
+  void smooth_patches(int level, int n);
   void describe(int level, int n, FeatureSet& out);
 
   OrbConfig config_;
@@ -112,6 +113,7 @@ class OrbExtractor {
                                              // [1] scratch, [2] neighbourhood fully allowed
   std::vector<std::uint8_t> chunk_ok_;       // per level: rows x 16-pixel chunks
   std::vector<std::uint8_t> chunk_relaxed_;  // chunks the relaxed pass scores (same layout)
+  std::vector<std::uint8_t> smooth_tiles_;   // per level: 32x32 tiles that need smoothing
   std::vector<std::uint8_t> cell_need_;      // per threshold-cell row x chunk: any cell without strict
   GrayView organ_;                           // dilated organ mask of this frame (or empty)
   GrayView valid_;                           // valid mask of this frame (or empty)
