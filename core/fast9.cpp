@@ -64,6 +64,49 @@ Status Fast9Detector::configure(int max_width) {
   return Status::Ok();
 }
 
+#if CV_SIMD128
+namespace {
+
+// Scores 16 pixels q[0..15] (lanes outside lane_keep ignored); appends
+// corners (score > threshold) to scores/xs. The cheap pre-test (a 9-arc holds
+// one of circle pixels {0, 8} and one of {4, 12}) is run per polarity, and
+// only the polarity that can pass is scored.
+void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int threshold, int x,
+                   unsigned lane_keep, std::uint8_t* scores, std::uint16_t* xs, int* n) {
+  const cv::v_uint8x16 tv = cv::v_setall_u8(static_cast<std::uint8_t>(threshold));
+  const cv::v_uint8x16 v = cv::v_load(q);
+  const cv::v_uint8x16 hi = v + tv, lo = v - tv;  // saturating
+  const cv::v_uint8x16 c0 = cv::v_load(q + off[0]), c4 = cv::v_load(q + off[4]);
+  const cv::v_uint8x16 c8 = cv::v_load(q + off[8]), c12 = cv::v_load(q + off[12]);
+  const bool any_bright = cv::v_check_any(((c0 > hi) | (c8 > hi)) & ((c4 > hi) | (c12 > hi)));
+  const bool any_dark = cv::v_check_any(((c0 < lo) | (c8 < lo)) & ((c4 < lo) | (c12 < lo)));
+  if (!any_bright && !any_dark) return;
+  cv::v_uint8x16 d[16];
+  cv::v_uint8x16 score = cv::v_setzero_u8();
+  if (any_bright) {
+    for (int i = 0; i < 16; ++i) d[i] = cv::v_load(q + off[i]) - v;  // saturating: 0 where not brighter
+    score = best_arc_min_simd(d);
+  }
+  if (any_dark) {
+    for (int i = 0; i < 16; ++i) d[i] = v - cv::v_load(q + off[i]);
+    score = cv::v_max(score, best_arc_min_simd(d));
+  }
+  // A lane is a corner iff its score exceeds the threshold.
+  unsigned mask = static_cast<unsigned>(cv::v_signmask(score > tv)) & lane_keep;
+  if (!mask) return;
+  alignas(16) std::uint8_t lane_score[16];
+  cv::v_store_aligned(lane_score, score);
+  while (mask) {
+    const int lane = std::countr_zero(mask);
+    mask &= mask - 1;
+    scores[x + lane] = lane_score[lane];
+    xs[(*n)++] = static_cast<std::uint16_t>(x + lane);
+  }
+}
+
+}  // namespace
+#endif
+
 void Fast9Detector::score_row(GrayView image, int y, int threshold, int x_begin, int x_end,
                               const std::uint8_t* allowed, std::uint8_t* scores,
                               std::uint16_t* xs, int* n) {
@@ -72,40 +115,18 @@ void Fast9Detector::score_row(GrayView image, int y, int threshold, int x_begin,
 #if CV_SIMD128
   std::ptrdiff_t off[16];
   for (int i = 0; i < 16; ++i) off[i] = kCircleDy[i] * image.stride + kCircleDx[i];
-  const cv::v_uint8x16 tv = cv::v_setall_u8(static_cast<std::uint8_t>(threshold));
   for (; x + 16 <= x_end; x += 16) {
     if (allowed && !(allowed[x >> 4] | allowed[(x + 15) >> 4])) continue;
-    const std::uint8_t* q = p + x;
-    const cv::v_uint8x16 v = cv::v_load(q);
-    const cv::v_uint8x16 hi = v + tv, lo = v - tv;  // saturating
-    const cv::v_uint8x16 c0 = cv::v_load(q + off[0]), c4 = cv::v_load(q + off[4]);
-    const cv::v_uint8x16 c8 = cv::v_load(q + off[8]), c12 = cv::v_load(q + off[12]);
-    // A 9-arc holds one of {0, 8} and one of {4, 12}.
-    const cv::v_uint8x16 quick = (((c0 > hi) | (c8 > hi)) & ((c4 > hi) | (c12 > hi))) |
-                                 (((c0 < lo) | (c8 < lo)) & ((c4 < lo) | (c12 < lo)));
-    if (!cv::v_check_any(quick)) continue;
-    cv::v_uint8x16 bright[16], dark[16];
-    // Scores of all 16 lanes at once (same definition as fast9_score).
-    for (int i = 0; i < 16; ++i) {
-      const cv::v_uint8x16 c = cv::v_load(q + off[i]);
-      bright[i] = c - v;  // saturating: 0 where not brighter
-      dark[i] = v - c;
-    }
-    // A lane is a corner iff its score exceeds the threshold.
-    const cv::v_uint8x16 score = cv::v_max(best_arc_min_simd(bright), best_arc_min_simd(dark));
-    unsigned mask = static_cast<unsigned>(cv::v_signmask(score > tv));
-    if (!mask) continue;
-    alignas(16) std::uint8_t lane_score[16];
-    cv::v_store_aligned(lane_score, score);
-    while (mask) {
-      const int lane = std::countr_zero(mask);
-      mask &= mask - 1;
-      const int s = lane_score[lane];
-      if (s > threshold) {
-        scores[x + lane] = static_cast<std::uint8_t>(s);
-        xs[(*n)++] = static_cast<std::uint16_t>(x + lane);
-      }
-    }
+    score_block16(p + x, off, threshold, x, 0xFFFFu, scores, xs, n);
+  }
+  // Tail: one overlapping block ending at x_end, only the lanes not yet seen.
+  if (x < x_end && x_end - 16 >= x_begin) {
+    const int xb = x_end - 16;
+    unsigned keep = 0;
+    for (int lane = x - xb; lane < 16; ++lane)
+      if (!allowed || allowed[(xb + lane) >> 4]) keep |= 1u << lane;
+    if (keep) score_block16(p + xb, off, threshold, xb, keep, scores, xs, n);
+    x = x_end;
   }
 #endif
   for (; x < x_end; ++x) {

@@ -125,6 +125,11 @@ Status ImagePyramid::configure(int width, int height, int levels, float scale_fa
     if (k > 0) {
       make_axis_table(w, levels_img_[k - 1].width(), tables_[k].x0, tables_[k].wx);
       make_axis_table(h, levels_img_[k - 1].height(), tables_[k].y0, tables_[k].wy);
+      tables_[k].wpair.assign(static_cast<std::size_t>(2 * w), 0);
+      for (int i = 0; i < w; ++i) {
+        tables_[k].wpair[static_cast<std::size_t>(2 * i)] = static_cast<std::int16_t>(128 - tables_[k].wx[static_cast<std::size_t>(i)]);
+        tables_[k].wpair[static_cast<std::size_t>(2 * i + 1)] = static_cast<std::int16_t>(tables_[k].wx[static_cast<std::size_t>(i)]);
+      }
     }
   }
   row_tmp_.assign(static_cast<std::size_t>(width) + 16, 0);
@@ -155,26 +160,79 @@ void ImagePyramid::resize_level(int k) {
 #endif
     for (; x < src.width; ++x)
       tmp[x] = static_cast<std::uint16_t>(r0[x] * (128 - wy) + r1[x] * wy);
-    std::uint8_t* out = dst.row(y);
-    const std::int32_t* x0 = t.x0.data();
-    const std::uint8_t* wx = t.wx.data();
-    for (int i = 0; i < dst.width; ++i) {
-      const std::uint32_t v = tmp[x0[i]] * static_cast<std::uint32_t>(128 - wx[i]) +
-                              tmp[x0[i] + 1] * static_cast<std::uint32_t>(wx[i]);
-      out[i] = static_cast<std::uint8_t>((v + 8192u) >> 14);
-    }
+    horizontal_blend(tmp, t, dst.row(y), dst.width);
   }
 }
 
-bool ImagePyramid::build(GrayView image) {
+// Horizontal bilinear pass of one vertically blended row (u16, <= 255 * 128):
+// 8 output pixels per dot product of (left, right) pairs with (128 - w, w).
+void ImagePyramid::horizontal_blend(const std::uint16_t* tmp, const ResizeTables& t,
+                                    std::uint8_t* out, int width) {
+  const std::int32_t* x0 = t.x0.data();
+  const std::uint8_t* wx = t.wx.data();
+  int i = 0;
+#if CV_SIMD128
+  const std::int16_t* wpair = t.wpair.data();
+  const cv::v_int32x4 half = cv::v_setall_s32(8192);
+  for (; i + 16 <= width; i += 16) {
+    alignas(16) std::uint32_t pairs[16];  // (tmp[x0], tmp[x0 + 1]) as one 32-bit load each
+    for (int j = 0; j < 16; ++j) std::memcpy(&pairs[j], tmp + x0[i + j], sizeof(std::uint32_t));
+    const std::int16_t* p16 = reinterpret_cast<const std::int16_t*>(pairs);
+    cv::v_int32x4 s[4];
+    for (int q = 0; q < 4; ++q)
+      s[q] = cv::v_shr<14>(cv::v_dotprod(cv::v_load(p16 + 8 * q), cv::v_load(wpair + 2 * i + 8 * q)) + half);
+    cv::v_store(out + i, cv::v_pack_u(cv::v_pack(s[0], s[1]), cv::v_pack(s[2], s[3])));
+  }
+#endif
+  for (; i < width; ++i) {
+    const std::uint32_t v = tmp[x0[i]] * static_cast<std::uint32_t>(128 - wx[i]) +
+                            tmp[x0[i] + 1] * static_cast<std::uint32_t>(wx[i]);
+    out[i] = static_cast<std::uint8_t>((v + 8192u) >> 14);
+  }
+}
+
+bool ImagePyramid::build_levels(GrayView image) {
   if (image.empty() || image.width != width_ || image.height != height_) return false;
   const ImageView<std::uint8_t> l0 = levels_img_[0].view();
   for (int y = 0; y < height_; ++y)
     std::memcpy(l0.row(y), image.row(y), static_cast<std::size_t>(width_));
   for (int k = 1; k < levels_; ++k) resize_level(k);
+  return true;
+}
+
+bool ImagePyramid::build(GrayView image) {
+  if (!build_levels(image)) return false;
   for (int k = 0; k < levels_; ++k)
     gaussian_blur7(levels_img_[k].cview(), smooth_img_[k].view(), blur_tmp_.data());
   return true;
+}
+
+// Same passes as gaussian_blur7, restricted to one tile: the vertical pass
+// covers the tile's columns plus 3 on each side (replicated at the level's
+// edges, as the whole-level blur does), so the result is identical.
+void ImagePyramid::smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x) {
+  const GrayView src = levels_img_[k].cview();
+  const ImageView<std::uint8_t> dst = smooth_img_[k].view();
+  const int w = src.width, h = src.height;
+  std::uint8_t* p_base = blur_tmp_.data() + 3;  // p_base[i] = column x0 + i of the tile
+  for (int ty = 0; ty * kSmoothTilePx < h; ++ty) {
+    for (int tx = 0; tx < tiles_x && tx * kSmoothTilePx < w; ++tx) {
+      if (!tiles[ty * tiles_x + tx]) continue;
+      const int x0 = tx * kSmoothTilePx, x1 = std::min(x0 + kSmoothTilePx, w);
+      const int cx0 = std::max(x0 - 3, 0), cx1 = std::min(x1 + 3, w);
+      const int y1 = std::min((ty + 1) * kSmoothTilePx, h);
+      for (int y = ty * kSmoothTilePx; y < y1; ++y) {
+        const std::uint8_t* rows[7];
+        for (int i = 0; i < 7; ++i) rows[i] = src.row(std::clamp(y + i - 3, 0, h - 1)) + cx0;
+        blur_vertical(rows, p_base + (cx0 - x0), cx1 - cx0);
+        if (x0 == 0)
+          for (int i = 1; i <= 3; ++i) p_base[-i] = p_base[0];
+        if (x1 == w)
+          for (int i = 1; i <= 3; ++i) p_base[w - 1 - x0 + i] = p_base[w - 1 - x0];
+        blur_horizontal(p_base, dst.row(y) + x0, x1 - x0);
+      }
+    }
+  }
 }
 
 }  // namespace st

@@ -24,6 +24,14 @@ class ImagePyramid {
   Status configure(int width, int height, int levels, float scale_factor);
   // image must be width x height (as configured); returns false otherwise.
   bool build(GrayView image);
+  // The levels only, without smoothing: smoothed(k) is then valid only in
+  // the tiles passed to smooth_tiles() afterwards. Allocates nothing.
+  bool build_levels(GrayView image);
+  // Smooths the kSmoothTilePx x kSmoothTilePx tiles of level k whose byte in
+  // tiles (tiles_x per row) is non-zero; bit-identical to the whole-level
+  // smoothing of build() there. Allocates nothing.
+  static constexpr int kSmoothTilePx = 32;
+  void smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x);
 
   int levels() const { return levels_; }
   float scale(int level) const { return scale_[level]; }  // level-k pixel * scale = level-0 pixel
@@ -36,8 +44,11 @@ class ImagePyramid {
   struct ResizeTables {  // bilinear source index and 8-bit weight per output column/row
     std::vector<std::int32_t> x0, y0;
     std::vector<std::uint8_t> wx, wy;  // weight of the second sample, 0..128
+    std::vector<std::int16_t> wpair;   // per output column: (128 - wx, wx)
   };
   void resize_level(int k);
+  static void horizontal_blend(const std::uint16_t* tmp, const ResizeTables& t, std::uint8_t* out,
+                               int width);
   std::array<Image<std::uint8_t>, kMaxPyramidLevels> levels_img_;
   std::array<Image<std::uint8_t>, kMaxPyramidLevels> smooth_img_;
   std::array<ResizeTables, kMaxPyramidLevels> tables_;

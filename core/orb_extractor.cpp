@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 namespace st {
@@ -81,6 +82,11 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   blocks_y_ = ceil_div(height, kBlock);
   block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 3, 0);
   chunk_ok_.assign(static_cast<std::size_t>(height) * (ceil_div(width, kBlock) + 1), 0);
+  chunk_relaxed_.assign(chunk_ok_.size(), 0);
+  smooth_tiles_.assign(static_cast<std::size_t>(ceil_div(width, ImagePyramid::kSmoothTilePx)) *
+                           ceil_div(height, ImagePyramid::kSmoothTilePx), 0);
+  cell_need_.assign(static_cast<std::size_t>(ceil_div(height, c.threshold_cell_px) + 1) *
+                        (ceil_div(width, kBlock) + 1), 0);
   return Status::Ok();
 }
 
@@ -155,10 +161,16 @@ void OrbExtractor::build_chunk_map(int level) {
   const float s = pyramid_.scale(level);
   const int chunks = ceil_div(img.width, kBlock);
   const std::uint8_t* blocks = block_ok_.data();
+  int prev_by = -1;
   for (int y = 0; y < img.height; ++y) {
     const int by = std::clamp(static_cast<int>(to_level0(static_cast<float>(y), s)) / kBlock, 0,
                               blocks_y_ - 1);
     std::uint8_t* row = chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+    if (by == prev_by) {  // same block row as the row above: same chunks
+      std::memcpy(row, row - chunks, static_cast<std::size_t>(chunks));
+      continue;
+    }
+    prev_by = by;
     const std::uint8_t* brow = blocks + static_cast<std::ptrdiff_t>(by) * blocks_x_;
     for (int cx = 0; cx < chunks; ++cx) {
       const int bx0 = std::clamp(static_cast<int>(to_level0(static_cast<float>(cx * kBlock), s)) / kBlock, 0, blocks_x_ - 1);
@@ -193,7 +205,8 @@ bool OrbExtractor::inside_masks(int level, int x, int y) const {
   return true;
 }
 
-int OrbExtractor::filter_candidates(int level, int n_fast) {
+// Pass 1 (strict threshold): corners inside the masks; marks their cells.
+int OrbExtractor::filter_strict(int level, int n_fast) {
   const GrayView img = pyramid_.level(level);
   const int cell = config_.threshold_cell_px;
   const int cells_x = ceil_div(img.width, cell);
@@ -204,18 +217,57 @@ int OrbExtractor::filter_candidates(int level, int n_fast) {
     const FastCorner& c = fast_out_[static_cast<std::size_t>(i)];
     if (use_chunks_ && !inside_masks(level, c.x, c.y)) continue;
     const std::uint32_t ci = static_cast<std::uint32_t>((c.y / cell) * cells_x + c.x / cell);
-    if (c.score > config_.fast_threshold_strict) cell_has_strict_[ci] = 1;
+    cell_has_strict_[ci] = 1;
     cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score, 0};
   }
-  stats_.masked_corners += n;
-  int kept = 0;
-  for (int i = 0; i < n; ++i) {
-    const Candidate& c = cand_[static_cast<std::size_t>(i)];
-    if (c.score > config_.fast_threshold_strict || !cell_has_strict_[c.cell])
-      cand_[static_cast<std::size_t>(kept++)] = c;
+  return n;
+}
+
+// Chunks for pass 2: allowed by the masks and overlapping a threshold cell
+// without a strict corner (cells need not align with the 16-pixel chunks).
+void OrbExtractor::build_relaxed_chunk_map(int level) {
+  const GrayView img = pyramid_.level(level);
+  const int cell = config_.threshold_cell_px;
+  const int cells_x = ceil_div(img.width, cell);
+  const int chunks = ceil_div(img.width, kBlock);
+  const int cells_y = ceil_div(img.height, cell);
+  std::uint8_t* need = cell_need_.data();
+  for (int cy = 0; cy < cells_y; ++cy) {  // per cell row: chunks touching a cell without strict
+    const std::uint8_t* has = cell_has_strict_.data() + static_cast<std::ptrdiff_t>(cy) * cells_x;
+    for (int cx = 0; cx < chunks; ++cx) {
+      const int c0 = cx * kBlock / cell, c1 = std::min((cx * kBlock + kBlock - 1) / cell, cells_x - 1);
+      std::uint8_t n = 0;
+      for (int c = c0; c <= c1; ++c) n |= static_cast<std::uint8_t>(!has[c]);
+      need[static_cast<std::ptrdiff_t>(cy) * chunks + cx] = n;
+    }
   }
-  stats_.kept_corners += kept;
-  return kept;
+  for (int y = 0; y < img.height; ++y) {
+    const std::uint8_t* nrow = need + static_cast<std::ptrdiff_t>(y / cell) * chunks;
+    std::uint8_t* out = chunk_relaxed_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+    if (!use_chunks_) {
+      std::memcpy(out, nrow, static_cast<std::size_t>(chunks));
+      continue;
+    }
+    const std::uint8_t* in = chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+    for (int cx = 0; cx < chunks; ++cx) out[cx] = static_cast<std::uint8_t>(nrow[cx] & in[cx]);
+  }
+}
+
+// Pass 2 (relaxed threshold, only where needed): appends corners that are
+// not strict, lie in a cell without a strict corner and inside the masks.
+int OrbExtractor::filter_relaxed(int level, int n_fast, int n) {
+  const GrayView img = pyramid_.level(level);
+  const int cell = config_.threshold_cell_px;
+  const int cells_x = ceil_div(img.width, cell);
+  for (int i = 0; i < n_fast; ++i) {
+    const FastCorner& c = fast_out_[static_cast<std::size_t>(i)];
+    if (c.score > config_.fast_threshold_strict) continue;  // already in pass 1 (or masked)
+    const std::uint32_t ci = static_cast<std::uint32_t>((c.y / cell) * cells_x + c.x / cell);
+    if (cell_has_strict_[ci]) continue;
+    if (use_chunks_ && !inside_masks(level, c.x, c.y)) continue;
+    cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score, 0};
+  }
+  return n;
 }
 
 int OrbExtractor::spread(int level, int n, int target) {
@@ -277,7 +329,27 @@ void OrbExtractor::harris_keys(int level, int n) {
   }
 }
 
+// Smooths only the tiles of the level that the kept keypoints' patches
+// (radius kOrbPatchRadius) reach.
+void OrbExtractor::smooth_patches(int level, int n) {
+  const GrayView img = pyramid_.level(level);
+  constexpr int kTile = ImagePyramid::kSmoothTilePx;
+  const int tiles_x = ceil_div(img.width, kTile), tiles_y = ceil_div(img.height, kTile);
+  std::fill(smooth_tiles_.begin(), smooth_tiles_.begin() + tiles_x * tiles_y, 0);
+  for (int i = 0; i < n; ++i) {
+    const Candidate& c = cand_[static_cast<std::size_t>(i)];
+    const int tx0 = std::max(c.x - kOrbPatchRadius, 0) / kTile;
+    const int tx1 = std::min(c.x + kOrbPatchRadius, img.width - 1) / kTile;
+    const int ty0 = std::max(c.y - kOrbPatchRadius, 0) / kTile;
+    const int ty1 = std::min(c.y + kOrbPatchRadius, img.height - 1) / kTile;
+    for (int ty = ty0; ty <= ty1; ++ty)
+      for (int tx = tx0; tx <= tx1; ++tx) smooth_tiles_[static_cast<std::size_t>(ty * tiles_x + tx)] = 1;
+  }
+  pyramid_.smooth_tiles(level, smooth_tiles_.data(), tiles_x);
+}
+
 void OrbExtractor::describe(int level, int n, FeatureSet& out) {
+  smooth_patches(level, n);
   const GrayView img = pyramid_.level(level);
   const GrayView smooth = pyramid_.smoothed(level);
   const float s = pyramid_.scale(level);
@@ -299,7 +371,7 @@ void OrbExtractor::describe(int level, int n, FeatureSet& out) {
 bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_mask, FeatureSet& out) {
   out.clear();
   stats_ = OrbFrameStats{};
-  if (!pyramid_.build(image)) return false;
+  if (!pyramid_.build_levels(image)) return false;  // smoothing: per level, kept patches only
   out.width = width_;
   out.height = height_;
   prepare_masks(organ_mask, valid_mask);
@@ -307,12 +379,26 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
     const GrayView img = pyramid_.level(k);
     if (img.width <= 2 * config_.edge_border_px || img.height <= 2 * config_.edge_border_px) continue;
     if (use_chunks_) build_chunk_map(k);
-    const int n_fast = fast_.detect(img, config_.fast_threshold_relaxed, config_.edge_border_px,
-                                    use_chunks_ ? chunk_ok_.data() : nullptr,
-                                    ceil_div(img.width, kBlock), fast_out_.data(),
-                                    static_cast<int>(fast_out_.size()));
-    stats_.fast_corners += n_fast;
-    const int n_kept = filter_candidates(k, n_fast);
+    // Strict threshold everywhere, the relaxed one only in threshold cells
+    // where the strict one kept nothing: most of the frame is scored once,
+    // at the threshold where few pixels pass the cheap pre-test.
+    const int chunks = ceil_div(img.width, kBlock);
+    const int capacity = static_cast<int>(fast_out_.size());
+    const int n_strict = fast_.detect(img, config_.fast_threshold_strict, config_.edge_border_px,
+                                      use_chunks_ ? chunk_ok_.data() : nullptr, chunks,
+                                      fast_out_.data(), capacity);
+    const int n1 = filter_strict(k, n_strict);
+    int n_kept = n1;
+    int n_relaxed = 0;
+    if (config_.fast_threshold_relaxed < config_.fast_threshold_strict) {
+      build_relaxed_chunk_map(k);
+      n_relaxed = fast_.detect(img, config_.fast_threshold_relaxed, config_.edge_border_px,
+                               chunk_relaxed_.data(), chunks, fast_out_.data(), capacity);
+      n_kept = filter_relaxed(k, n_relaxed, n1);
+    }
+    stats_.fast_corners += n_strict + n_relaxed;
+    stats_.masked_corners += n_kept;
+    stats_.kept_corners += n_kept;
     const int n_pre = spread(k, n_kept, 2 * level_target_[k]);
     harris_keys(k, n_pre);
     const int n_spread = spread(k, n_pre, level_target_[k]);

@@ -6,10 +6,10 @@
 //   orb.extract(luma, organ_mask, valid_mask, features);  // allocates nothing
 //
 // Pipeline per frame: pyramid (levels x scale_factor) -> FAST-9 per level at
-// the relaxed threshold with scores -> keep corners inside the organ mask
+// the strict threshold with scores -> keep corners inside the organ mask
 // (dilated by organ_margin_px) and the valid mask (centre and all 16 FAST
-// circle pixels) -> per threshold cell: only strict corners if the cell
-// has any, else the relaxed ones -> spread to twice the level's target count
+// circle pixels) -> FAST at the relaxed threshold only in threshold cells
+// without a strict corner (ORB-SLAM2's rule) -> spread to twice the level's target count
 // with a grid (best FAST score per cell first, then second best, ...) ->
 // Harris response (7x7) of those -> spread again by Harris response to the
 // target (cv::ORB also ranks by Harris: it is more repeatable) -> intensity
@@ -91,9 +91,12 @@ class OrbExtractor {
   void mark_full_blocks();
   void build_chunk_map(int level);
   bool inside_masks(int level, int x, int y) const;
-  int filter_candidates(int level, int n_fast);
+  int filter_strict(int level, int n_fast);
+  void build_relaxed_chunk_map(int level);
+  int filter_relaxed(int level, int n_fast, int n);
   int spread(int level, int n, int target);
   void harris_keys(int level, int n);
+  void smooth_patches(int level, int n);
   void describe(int level, int n, FeatureSet& out);
 
   OrbConfig config_;
@@ -109,6 +112,9 @@ class OrbExtractor {
   std::vector<std::uint8_t> block_ok_;       // per 16x16 level-0 block: [0] any allowed pixel,
                                              // [1] scratch, [2] neighbourhood fully allowed
   std::vector<std::uint8_t> chunk_ok_;       // per level: rows x 16-pixel chunks
+  std::vector<std::uint8_t> chunk_relaxed_;  // chunks the relaxed pass scores (same layout)
+  std::vector<std::uint8_t> smooth_tiles_;   // per level: 32x32 tiles that need smoothing
+  std::vector<std::uint8_t> cell_need_;      // per threshold-cell row x chunk: any cell without strict
   GrayView organ_;                           // dilated organ mask of this frame (or empty)
   GrayView valid_;                           // valid mask of this frame (or empty)
   int blocks_x_ = 0, blocks_y_ = 0;

@@ -2,30 +2,26 @@
 
 #include <cstring>
 #include <random>
-#include <sstream>
+#include <string_view>
 
 #include <opencv2/imgproc.hpp>
 
+#include "core/y4m.h"
 #include "support/support.h"
 
 namespace st::test {
 
 cv::Mat real_frame_luma() {
   const std::string bytes = read_file_bytes(shared_data("real/laparoscopy_liver_1080p.y4m"));
-  const std::size_t eol = bytes.find('\n');
-  if (bytes.rfind("YUV4MPEG2 ", 0) != 0 || eol == std::string::npos) return {};
-  int w = 0, h = 0;
-  std::istringstream header(bytes.substr(10, eol - 10));
-  for (std::string tok; header >> tok;) {
-    if (tok[0] == 'W') w = std::atoi(tok.c_str() + 1);
-    if (tok[0] == 'H') h = std::atoi(tok.c_str() + 1);
-  }
-  const std::size_t y_start = eol + 1 + 6;  // "FRAME\n"
-  if (w <= 0 || h <= 0 || bytes.compare(eol + 1, 6, "FRAME\n") != 0 ||
-      bytes.size() < y_start + static_cast<std::size_t>(w) * h)
-    return {};
-  cv::Mat y(h, w, CV_8UC1);
-  std::memcpy(y.data, bytes.data() + y_start, static_cast<std::size_t>(w) * h);
+  const std::string_view all(bytes);
+  const Result<Y4mHeader> header = parse_y4m_header(all);
+  if (!header) return {};
+  const Result<std::size_t> frame_line = parse_y4m_frame_line(all.substr(header->header_bytes));
+  if (!frame_line) return {};
+  const std::size_t y_start = header->header_bytes + frame_line.value();
+  if (bytes.size() < y_start + header->frame_bytes()) return {};
+  cv::Mat y(header->height, header->width, CV_8UC1);
+  std::memcpy(y.data, bytes.data() + y_start, header->luma_bytes());
   return y;
 }
 

@@ -1,7 +1,6 @@
 // Fixtures for the ORB frontend tests: the real frame's luma, a synthetic
 // textured image, homography warps, and conversions to/from cv::Mat.
-// The real frame is read here straight from the one-frame Y4M (a stopgap
-// until the shared Y4M parser lands; the lead switches this to it).
+// The real frame is read through the project's Y4M parser (core/y4m.h).
 #pragma once
 
 #include <string>
