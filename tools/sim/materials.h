@@ -24,12 +24,18 @@ struct Material {
   float vessel_mm = 18.0f;           // spacing of the vessel network
   float vessel_width = 0.06f;        // half-width in noise units (0 = none)
   float vessel_strength = 0.5f;      // 0..1 blend towards the vessel colour
+  float vessel_scale = 1.0f;         // vessel lines' weight in the vessel channel (spots share it)
   float speckle_mm = 0.6f;           // grain size of the fine speckle
   float speckle_strength = 0.08f;    // relative albedo modulation
   float specular = 0.35f;            // Blinn-Phong weight (wet tissue is glossy)
   int shininess_log2 = 5;            // exponent 2^k: 32
   float lobules = 0.0f;              // darker creases between round lobules (fat)
   float lobule_mm = 9.0f;
+  float mottle = 0.12f;              // relative brightness variation of patches (~4-8 mm)
+  float fine_mm = 0.0f;              // second, coarser speckle scale (liver lobules); 0 = none
+  float spots = 0.0f;                // strength of small dark spots (0..1), in the vessel channel
+  float spot_mm = 2.2f;              // spacing of the spots (lobule centres)
+  float spot_radius_mm = 0.3f;
 };
 
 Material material(MaterialId id);

@@ -76,6 +76,25 @@ float Noise3::value(float x, float y, float z) const {
   return lerp(a, b, w);
 }
 
+Noise3::Cell Noise3::cellular(float x, float y, float z) const {
+  const float fx = std::floor(x), fy = std::floor(y), fz = std::floor(z);
+  const int X = static_cast<int>(fx), Y = static_cast<int>(fy), Z = static_cast<int>(fz);
+  Cell best{1e9f, 0.0f};
+  for (int k = -1; k <= 1; ++k)
+    for (int j = -1; j <= 1; ++j)
+      for (int i = -1; i <= 1; ++i) {
+        const int h = hash(X + i, Y + j, Z + k);
+        // Jitter within the cell from three further table lookups.
+        const float px = static_cast<float>(i) + values_[h] - (x - fx);
+        const float py = static_cast<float>(j) + values_[(h + 71) & 255] - (y - fy);
+        const float pz = static_cast<float>(k) + values_[(h + 157) & 255] - (z - fz);
+        const float d2 = px * px + py * py + pz * pz;
+        if (d2 < best.distance) best = {d2, values_[(h + 211) & 255]};
+      }
+  best.distance = std::sqrt(best.distance);
+  return best;
+}
+
 float Noise3::fbm(float x, float y, float z, int octaves, float gain) const {
   float sum = 0.0f, amp = 1.0f, norm = 0.0f;
   for (int i = 0; i < octaves; ++i) {

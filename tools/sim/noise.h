@@ -24,6 +24,13 @@ class Noise3 {
   // Thin dark lines where the noise crosses zero: 1 on a line, 0 away from
   // it; width is the half-width in noise units (vessel-like network).
   float ridge(float x, float y, float z, float width) const;
+  // Cellular (Worley) noise: distance to the nearest of one jittered
+  // feature point per unit cell, and that cell's random value in [0, 1]
+  // (liver lobules: a dark central vein at every feature point).
+  struct Cell {
+    float distance = 0, value = 0;
+  };
+  Cell cellular(float x, float y, float z) const;
 
  private:
   int hash(int x, int y, int z) const {

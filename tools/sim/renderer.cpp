@@ -84,7 +84,7 @@ Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settin
   // Texel grids: ~0.3 mm on the organ (2-3 mm triangles), ~0.5 mm on the
   // floor (6 mm cells), coarse on the plain instrument.
   const auto organ_tris = static_cast<std::size_t>(scene.organ.triangle_count());
-  prepare_mesh(scene.organ, std::vector<MaterialId>(organ_tris, MaterialId::Liver), 8, &organ_);
+  prepare_mesh(scene.organ, std::vector<MaterialId>(organ_tris, MaterialId::Liver), 12, &organ_);
   prepare_mesh(scene.background, scene.background_material, 12, &background_);
   const auto instrument_tris = static_cast<std::size_t>(scene.instrument.triangle_count());
   prepare_mesh(scene.instrument, std::vector<MaterialId>(instrument_tris, MaterialId::Instrument), 4, &instrument_);

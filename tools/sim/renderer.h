@@ -34,9 +34,10 @@ struct RenderSettings {
   double field_stop_radius_px = 0;  // 0: 0.66 * height
   double vignetting = 0.35;  // relative brightness loss at the image corners
   double exposure = 1.1;     // linear gain at the reference distance
-  double noise_read = 0.006; // sensor noise sigma, linear units
-  double noise_shot = 0.002; // signal-dependent variance per unit signal
+  double noise_read = 0.0022; // sensor noise sigma, linear units
+  double noise_shot = 0.0007; // signal-dependent variance per unit signal
   std::uint64_t seed = 1;
+  std::uint64_t noise_seed = 0;  // sensor noise only; 0: use seed (texture stays that of seed)
 };
 
 class SceneRenderer {

@@ -170,7 +170,8 @@ void SceneRenderer::finish(int frame, cv::Mat& rgb, cv::Mat& labels) {
   const cv::Mat& lin = distorted ? linear_out_ : accum_;
   rgb.create(H, W, CV_8UC3);
   labels.create(H, W, CV_8U);
-  Rng rng(mix_seed(settings_.seed, static_cast<std::uint64_t>(frame) + 1));
+  const std::uint64_t noise_seed = settings_.noise_seed != 0 ? settings_.noise_seed : settings_.seed;
+  Rng rng(mix_seed(noise_seed, static_cast<std::uint64_t>(frame) + 1));
   const float lut_scale = static_cast<float>(gamma_lut_.size()) - 1.0f;
   for (int y = 0; y < H; ++y) {
     const auto* in = lin.ptr<cv::Vec3f>(y);
