@@ -76,7 +76,12 @@ Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settin
   scene_ = &scene;
   organ_centre_model_ = bounding_box(scene.organ).centre();
   texture_ = Texture(settings.seed);
-  for (int m = 0; m < static_cast<int>(MaterialId::Count); ++m) materials_[m] = material(static_cast<MaterialId>(m));
+  for (int m = 0; m < static_cast<int>(MaterialId::Count); ++m) {
+    materials_[m] = material(static_cast<MaterialId>(m));
+    // n.l below which the specular term ndl^(2^k) is < 1e-4 (under 1/255 of
+    // the brightest highlight): shade_pixel skips the squaring chain there.
+    specular_cutoff_[m] = std::pow(1e-4f, 1.0f / static_cast<float>(1 << materials_[m].shininess_log2));
+  }
   build_camera_maps();
   if (K_ideal_.width > kMaxImageWidth || K_ideal_.height > kMaxImageHeight)
     return make_error("the distortion needs an ideal image of " + std::to_string(K_ideal_.width) + "x" +

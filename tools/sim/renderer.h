@@ -97,6 +97,7 @@ class SceneRenderer {
   Texture texture_{1};
   Vec3 organ_centre_model_;
   Material materials_[static_cast<int>(MaterialId::Count)];
+  float specular_cutoff_[static_cast<int>(MaterialId::Count)] = {};
   ShadeMesh organ_, background_, instrument_;
   MeshRasterizer organ_raster_, background_raster_, instrument_raster_;
   cv::Mat accum_;         // ideal image, linear RGB, CV_32FC3

@@ -137,9 +137,9 @@ Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, const Vec3f& 
   const std::int32_t* v = &sm.mesh->tri[3 * static_cast<std::size_t>(tri)];
   const ShadeMesh::VertexShade &s0 = sm.vertex[v[0]], &s1 = sm.vertex[v[1]], &s2 = sm.vertex[v[2]];
   const Vec3f n_raw = b0 * s0.normal + b1 * s1.normal + b2 * s2.normal;
-  const float inv_n = 1.0f / std::sqrt(n_raw.squaredNorm());
   const Vec3f albedo0 = b0 * s0.albedo + b1 * s1.albedo + b2 * s2.albedo;
-  const Material& mat = materials_[static_cast<int>(sm.material[tri])];
+  const int mat_id = static_cast<int>(sm.material[tri]);
+  const Material& mat = materials_[mat_id];
   // Baked detail, bilinear over the triangle's texel grid.
   const int g = sm.texels;
   const float gx = b1 * static_cast<float>(g - 1), gy = b2 * static_cast<float>(g - 1);
@@ -152,14 +152,16 @@ Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, const Vec3f& 
   const float speckle = (w00 * d[1] + w10 * d[3] + w01 * d2[1] + w11 * d2[3]) * (1.0f / 255.0f);
   const Vec3f albedo = Texture::apply_detail(mat, albedo0, vessel, speckle);
   // Light and eye at the camera centre: l = v = h (Blinn-Phong's half vector).
-  // One sqrt and one division per factor: this runs for every pixel.
-  const float inv_d = 1.0f / std::sqrt(p_c.squaredNorm());
-  const float ndl = std::max(0.0f, -n_raw.dot(Rp) * (inv_n * inv_d));
-  float powers[8];  // ndl^(2^k), branch-free
-  powers[0] = ndl;
-  for (int k = 1; k < 8; ++k) powers[k] = powers[k - 1] * powers[k - 1];
-  const float spec = powers[std::min(mat.shininess_log2, 7)];
-  const float e = irradiance * inv_d * inv_d;
+  // One sqrt per pixel (for n.l), the inverse square needs none; the
+  // specular power by repeated squaring in registers (no table on the stack).
+  const float dist2 = p_c.squaredNorm();
+  const float ndl = std::max(0.0f, -n_raw.dot(Rp) / std::sqrt(n_raw.squaredNorm() * dist2));
+  float spec = 0.0f;
+  if (ndl > specular_cutoff_[mat_id]) {  // most pixels are far from a highlight
+    spec = ndl;
+    for (int k = 0; k < mat.shininess_log2; ++k) spec *= spec;
+  }
+  const float e = irradiance / dist2;
   return albedo * (e * ndl + kAmbient) + Vec3f::Constant(e * mat.specular * spec);
 }
 
