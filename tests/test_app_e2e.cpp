@@ -62,13 +62,8 @@ int data_lines(const std::filesystem::path& p) {
 
 }  // namespace
 
-// Issue 6's end-to-end gate is "init ok, lost 0, median TRE < 2 px". The
-// tracker does not meet it yet on the simulator's sequences (see the README's
-// status table), so the test enforces what the product must never break
-// (initialisation, no confident wrong pose, complete output, no allocation,
-// reported poses near the truth) and prints the unmet gates as WARNINGs on
-// every run instead of hiding them. Turn the WARNs into CHECKs when they pass.
-TEST_CASE("app_e2e: simulate 150 frames, track, evaluate: init ok, no wrong pose, gates reported" *
+// Issue 6's end-to-end gate: init ok, lost 0, median TRE < 2 px, no wrong pose.
+TEST_CASE("app_e2e: simulate 150 frames, track, evaluate: init ok, no frame lost, median TRE < 2 px" *
           doctest::timeout(test::budget_s(300))) {
   const auto dir = test::scratch_dir("app_e2e_orbit");
   simulate(dir / "seq", 150, "480x270", 2);
@@ -82,10 +77,8 @@ TEST_CASE("app_e2e: simulate 150 frames, track, evaluate: init ok, no wrong pose
   CHECK(e.frames == 150);
   CHECK(e.init_ok);
   CHECK(e.wrong_pct == 0.0);
-  CHECK(e.reported_frames >= 1);
-  CHECK(e.tre_median_px < 5.0);
-  WARN(e.reported_frames == 150);  // issue 6 gate: lost 0
-  WARN(e.tre_median_px < 2.0);     // issue 6 gate: median TRE < 2 px
+  CHECK(e.reported_frames == 150);
+  CHECK(e.tre_median_px < 2.0);
   CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);
 }
 
