@@ -33,23 +33,32 @@ void make_axis_table(int dst_n, int src_n, std::vector<std::int32_t>& idx,
   }
 }
 
+#if CV_SIMD128
+// The 7-tap weighted sum of 16 pixels, taps load(0)..load(6) (symmetric
+// about tap 3), rounded and stored as u8. Shared by both blur passes.
+template <class Load>
+inline void blur7_store(std::uint8_t* out, Load load) {
+  const cv::v_uint16x8 w0 = cv::v_setall_u16(kBlurW0), w1 = cv::v_setall_u16(kBlurW1),
+                       w2 = cv::v_setall_u16(kBlurW2), w3 = cv::v_setall_u16(kBlurW3);
+  cv::v_uint16x8 lo[7], hi[7];
+  for (int i = 0; i < 7; ++i) cv::v_expand(load(i), lo[i], hi[i]);
+  cv::v_uint16x8 sl = cv::v_mul_wrap(lo[3], w0), sh = cv::v_mul_wrap(hi[3], w0);
+  sl = cv::v_add_wrap(sl, cv::v_mul_wrap(cv::v_add_wrap(lo[2], lo[4]), w1));
+  sh = cv::v_add_wrap(sh, cv::v_mul_wrap(cv::v_add_wrap(hi[2], hi[4]), w1));
+  sl = cv::v_add_wrap(sl, cv::v_mul_wrap(cv::v_add_wrap(lo[1], lo[5]), w2));
+  sh = cv::v_add_wrap(sh, cv::v_mul_wrap(cv::v_add_wrap(hi[1], hi[5]), w2));
+  sl = cv::v_add_wrap(sl, cv::v_mul_wrap(cv::v_add_wrap(lo[0], lo[6]), w3));
+  sh = cv::v_add_wrap(sh, cv::v_mul_wrap(cv::v_add_wrap(hi[0], hi[6]), w3));
+  cv::v_store(out, cv::v_rshr_pack<8>(sl, sh));
+}
+#endif
+
 // Vertical 7-tap pass: rows r[0..6] -> tmp (u8, rounded).
 void blur_vertical(const std::uint8_t* const r[7], std::uint8_t* out, int width) {
   int x = 0;
 #if CV_SIMD128
-  const cv::v_uint16x8 w0 = cv::v_setall_u16(kBlurW0), w1 = cv::v_setall_u16(kBlurW1),
-                       w2 = cv::v_setall_u16(kBlurW2), w3 = cv::v_setall_u16(kBlurW3);
   for (; x + 16 <= width; x += 16) {
-    cv::v_uint16x8 lo[7], hi[7];
-    for (int i = 0; i < 7; ++i) cv::v_expand(cv::v_load(r[i] + x), lo[i], hi[i]);
-    cv::v_uint16x8 sl = cv::v_mul_wrap(lo[3], w0), sh = cv::v_mul_wrap(hi[3], w0);
-    sl = cv::v_add_wrap(sl, cv::v_mul_wrap(cv::v_add_wrap(lo[2], lo[4]), w1));
-    sh = cv::v_add_wrap(sh, cv::v_mul_wrap(cv::v_add_wrap(hi[2], hi[4]), w1));
-    sl = cv::v_add_wrap(sl, cv::v_mul_wrap(cv::v_add_wrap(lo[1], lo[5]), w2));
-    sh = cv::v_add_wrap(sh, cv::v_mul_wrap(cv::v_add_wrap(hi[1], hi[5]), w2));
-    sl = cv::v_add_wrap(sl, cv::v_mul_wrap(cv::v_add_wrap(lo[0], lo[6]), w3));
-    sh = cv::v_add_wrap(sh, cv::v_mul_wrap(cv::v_add_wrap(hi[0], hi[6]), w3));
-    cv::v_store(out + x, cv::v_rshr_pack<8>(sl, sh));
+    blur7_store(out + x, [&](int i) { return cv::v_load(r[i] + x); });
   }
 #endif
   for (; x < width; ++x) {
@@ -64,19 +73,8 @@ void blur_vertical(const std::uint8_t* const r[7], std::uint8_t* out, int width)
 void blur_horizontal(const std::uint8_t* p, std::uint8_t* out, int width) {
   int x = 0;
 #if CV_SIMD128
-  const cv::v_uint16x8 w0 = cv::v_setall_u16(kBlurW0), w1 = cv::v_setall_u16(kBlurW1),
-                       w2 = cv::v_setall_u16(kBlurW2), w3 = cv::v_setall_u16(kBlurW3);
   for (; x + 16 <= width; x += 16) {
-    cv::v_uint16x8 lo[7], hi[7];
-    for (int i = 0; i < 7; ++i) cv::v_expand(cv::v_load(p + x + i - 3), lo[i], hi[i]);
-    cv::v_uint16x8 sl = cv::v_mul_wrap(lo[3], w0), sh = cv::v_mul_wrap(hi[3], w0);
-    sl = cv::v_add_wrap(sl, cv::v_mul_wrap(cv::v_add_wrap(lo[2], lo[4]), w1));
-    sh = cv::v_add_wrap(sh, cv::v_mul_wrap(cv::v_add_wrap(hi[2], hi[4]), w1));
-    sl = cv::v_add_wrap(sl, cv::v_mul_wrap(cv::v_add_wrap(lo[1], lo[5]), w2));
-    sh = cv::v_add_wrap(sh, cv::v_mul_wrap(cv::v_add_wrap(hi[1], hi[5]), w2));
-    sl = cv::v_add_wrap(sl, cv::v_mul_wrap(cv::v_add_wrap(lo[0], lo[6]), w3));
-    sh = cv::v_add_wrap(sh, cv::v_mul_wrap(cv::v_add_wrap(hi[0], hi[6]), w3));
-    cv::v_store(out + x, cv::v_rshr_pack<8>(sl, sh));
+    blur7_store(out + x, [&](int i) { return cv::v_load(p + x + i - 3); });
   }
 #endif
   for (; x < width; ++x) {
