@@ -78,6 +78,8 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
                               (ceil_div(height, c.threshold_cell_px) + 1), 0);
   organ_dilated_.assign(static_cast<std::size_t>(width) * height, 0);
   organ_tmp_.assign(static_cast<std::size_t>(width) * height, 0);
+  organ_counts_.assign(static_cast<std::size_t>(width), 0);
+  organ_prefix_.assign(static_cast<std::size_t>(width) + 1, 0);
   blocks_x_ = ceil_div(width, kBlock);
   blocks_y_ = ceil_div(height, kBlock);
   block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 3, 0);
@@ -96,8 +98,11 @@ void OrbExtractor::prepare_masks(GrayView organ, GrayView valid) {
   if (!organ.empty()) {
     const int r = ceil_div(config_.organ_margin_px * organ.width, width_);
     if (r > 0 && organ.width <= width_ && organ.height <= height_) {
-      dilate_binary(organ, r, organ_dilated_.data(), organ_tmp_.data());
-      organ_ = GrayView(organ_dilated_.data(), organ.width, organ.height, organ.width);
+      const ImageView<std::uint8_t> dilated(organ_dilated_.data(), organ.width, organ.height);
+      const MorphScratch scratch{ImageView<std::uint8_t>(organ_tmp_.data(), organ.width, organ.height),
+                                 organ_counts_.data(), organ_prefix_.data()};
+      morph_square(organ, r, dilated, scratch);
+      organ_ = dilated;
     } else {
       organ_ = organ;
     }

@@ -29,7 +29,7 @@
 #include "core/feature_set.h"
 #include "core/image.h"
 #include "core/image_pyramid.h"
-#include "core/mask_ops.h"
+#include "core/mask_morphology.h"
 #include "core/orb_descriptor.h"
 #include "core/result.h"
 
@@ -108,7 +108,8 @@ class OrbExtractor {
   std::vector<Candidate> cand_;
   std::vector<std::uint8_t> cell_has_strict_;
   std::vector<std::uint8_t> organ_dilated_;  // organ mask dilated by the margin (mask resolution)
-  std::vector<std::uint8_t> organ_tmp_;
+  std::vector<std::uint8_t> organ_tmp_;                // morph_square scratch: rows
+  std::vector<std::int32_t> organ_counts_, organ_prefix_;  // and counts
   std::vector<std::uint8_t> block_ok_;       // per 16x16 level-0 block: [0] any allowed pixel,
                                              // [1] scratch, [2] neighbourhood fully allowed
   std::vector<std::uint8_t> chunk_ok_;       // per level: rows x 16-pixel chunks

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <string>
 
-#include "core/mask_ops.h"
+#include "core/mask_morphology.h"
 
 #include <opencv2/core/hal/intrin.hpp>
 
@@ -29,6 +29,8 @@ Status ValidMaskBuilder::configure(const ValidMaskConfig& c, int width, int heig
   sat_.assign(n, 0);
   sat_tmp_.assign(n, 0);
   sat_dil_.assign(n, 0);
+  sat_counts_.assign(static_cast<std::size_t>(mask_w_), 0);
+  sat_prefix_.assign(static_cast<std::size_t>(mask_w_) + 1, 0);
   mask_.assign(n, 0);
   for (auto* v : {&first_, &last_, &efirst_, &elast_}) v->assign(static_cast<std::size_t>(mask_h_), 0);
   return Status::Ok();
@@ -154,7 +156,10 @@ GrayView ValidMaskBuilder::build(GrayView frame) {
     highlight_pixels_ += sat_[i] ? 1 : 0;
   }
   const int r = (config_.highlight_dilate_px + config_.downscale - 1) / config_.downscale;
-  dilate_binary(GrayView(sat_.data(), mask_w_, mask_h_), r, sat_dil_.data(), sat_tmp_.data());
+  const MorphScratch scratch{ImageView<std::uint8_t>(sat_tmp_.data(), mask_w_, mask_h_),
+                             sat_counts_.data(), sat_prefix_.data()};
+  morph_square(GrayView(sat_.data(), mask_w_, mask_h_), r,
+               ImageView<std::uint8_t>(sat_dil_.data(), mask_w_, mask_h_), scratch);
   for (int y = 0; y < mask_h_; ++y) {
     std::uint8_t* out = mask_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
     const std::uint8_t* sat = sat_dil_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
