@@ -20,6 +20,23 @@ int hamming256(const std::uint8_t* a, const std::uint8_t* b) {
   return d;
 }
 
+bool OrbMatcher::accept(const BestTwo& b) {
+  if (b.best_k < 0 || b.best > config_.max_distance) return false;
+  if (b.second <= 256 && static_cast<float>(b.best) >= config_.ratio * static_cast<float>(b.second)) {
+    ++stats_.ratio_rejected;
+    return false;
+  }
+  return true;
+}
+
+int OrbMatcher::finish(const FeatureSet& frame, int n, int* match) {
+  orientation_filter(ref_angles_.data(), frame, n, match);
+  int count = 0;
+  for (int i = 0; i < n; ++i) count += match[i] >= 0 ? 1 : 0;
+  stats_.matched = count;
+  return count;
+}
+
 Status OrbMatcher::configure(const MatchConfig& c) {
   if (c.max_distance < 0 || c.max_distance > 256) return make_error("MatchConfig.max_distance must be in [0, 256]");
   if (!(c.ratio > 0.f && c.ratio <= 1.f)) return make_error("MatchConfig.ratio must be in (0, 1]");
@@ -99,26 +116,15 @@ int OrbMatcher::search_by_projection(const ProjectedPoint* points, int n, const 
     const int lo = p.predicted_octave < 0 ? -1 : std::max(0, p.predicted_octave - config_.octave_window);
     const int hi = p.predicted_octave < 0 ? -1 : p.predicted_octave + config_.octave_window;
     const int nc = grid.query(frame, p.x, p.y, p.radius_px, lo, hi, candidates_.data(), kMaxKeypoints);
-    int best = 257, second = 257, best_k = -1;
+    BestTwo b;
     for (int j = 0; j < nc; ++j) {
       const int k = candidates_[static_cast<std::size_t>(j)];
-      const int d = hamming256(p.descriptor.data(), frame.descriptors[static_cast<std::size_t>(k)].data());
-      if (d < best) { second = best; best = d; best_k = k; }
-      else if (d < second) { second = d; }
+      b.add(hamming256(p.descriptor.data(), frame.descriptors[static_cast<std::size_t>(k)].data()), k);
     }
     stats_.candidates += nc;
-    if (best_k < 0 || best > config_.max_distance) continue;
-    if (second <= 256 && static_cast<float>(best) >= config_.ratio * static_cast<float>(second)) {
-      ++stats_.ratio_rejected;
-      continue;
-    }
-    claim(i, best_k, best, match, distance);
+    if (accept(b)) claim(i, b.best_k, b.best, match, distance);
   }
-  orientation_filter(ref_angles_.data(), frame, n, match);
-  int count = 0;
-  for (int i = 0; i < n; ++i) count += match[i] >= 0 ? 1 : 0;
-  stats_.matched = count;
-  return count;
+  return finish(frame, n, match);
 }
 
 int OrbMatcher::match_brute_force(const FeatureSet& query, const FeatureSet& train, int* match, int* distance) {
@@ -131,25 +137,12 @@ int OrbMatcher::match_brute_force(const FeatureSet& query, const FeatureSet& tra
     distance[i] = 256;
     ref_angles_[static_cast<std::size_t>(i)] = query.keypoints[static_cast<std::size_t>(i)].angle_deg;
     const std::uint8_t* q = query.descriptors[static_cast<std::size_t>(i)].data();
-    int best = 257, second = 257, best_k = -1;
-    for (int k = 0; k < nt; ++k) {
-      const int d = hamming256(q, train.descriptors[static_cast<std::size_t>(k)].data());
-      if (d < best) { second = best; best = d; best_k = k; }
-      else if (d < second) { second = d; }
-    }
+    BestTwo b;
+    for (int k = 0; k < nt; ++k) b.add(hamming256(q, train.descriptors[static_cast<std::size_t>(k)].data()), k);
     stats_.candidates += nt;
-    if (best_k < 0 || best > config_.max_distance) continue;
-    if (second <= 256 && static_cast<float>(best) >= config_.ratio * static_cast<float>(second)) {
-      ++stats_.ratio_rejected;
-      continue;
-    }
-    claim(i, best_k, best, match, distance);
+    if (accept(b)) claim(i, b.best_k, b.best, match, distance);
   }
-  orientation_filter(ref_angles_.data(), train, nq, match);
-  int count = 0;
-  for (int i = 0; i < nq; ++i) count += match[i] >= 0 ? 1 : 0;
-  stats_.matched = count;
-  return count;
+  return finish(train, nq, match);
 }
 
 }  // namespace st

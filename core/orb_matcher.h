@@ -66,6 +66,18 @@ class OrbMatcher {
   const MatchStats& stats() const { return stats_; }
 
  private:
+  // Best and second-best Hamming distance over one point's candidates.
+  struct BestTwo {
+    int best = 257, second = 257, best_k = -1;
+    void add(int d, int k) {
+      if (d < best) { second = best; best = d; best_k = k; }
+      else if (d < second) { second = d; }
+    }
+  };
+  // Max-distance and ratio tests (counts ratio rejections).
+  bool accept(const BestTwo& b);
+  // Orientation filter, then the match count (into stats_).
+  int finish(const FeatureSet& frame, int n, int* match_of_point);
   bool claim(int point, int keypoint, int distance, int* match_of_point, int* distance_of_point);
   void orientation_filter(const float* ref_angle, const FeatureSet& frame, int n,
                           int* match_of_point);
