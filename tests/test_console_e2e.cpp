@@ -6,6 +6,7 @@
 // console that connects and never reads does not slow the tracker.
 #include <doctest/doctest.h>
 
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -154,6 +155,11 @@ TEST_CASE("console_e2e: scopetrack streams a simulated sequence; the console get
     CHECK((received[i].T_model_camera.matrix() - tracked[i].T_model_camera.matrix()).norm() < 1e-6);
   }
   CHECK(console_log.find("120 poses (0 out of order)") != std::string::npos);  // lost frames too
+  // Nothing allocates per frame on any of the three threads after start.
+  CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);
+  CHECK(summary_number(dir / "out", "texture_thread_allocations") == 0);
+  CHECK(summary_number(dir / "out", "stream_sink_thread_allocations") == 0);
+  CHECK(summary_number(dir / "out", "stream_dropped_messages") == 0);
   CHECK(console_log.find("0 buffers rejected") != std::string::npos);
 
   // The texture against the simulator's frames.
@@ -189,7 +195,8 @@ TEST_CASE("console_e2e: a console that connects and never reads does not slow tr
   REQUIRE(run(bin("scopetrack-sim") + " --scenario orbit --frames 100 --size 480x270 --seed 3 --out " +
               q(dir / "seq") + " > /dev/null") == 0);
   // Without a console (the link runs, nobody listens).
-  const std::string base = bin("scopetrack") + " --sequence " + q(dir / "seq") + " --texture-every 1 --stream unix:";
+  // Default texturing (keyframes).
+  const std::string base = bin("scopetrack") + " --sequence " + q(dir / "seq") + " --stream unix:";
   REQUIRE(run(base + socket_path("none") + " --out " + q(dir / "none") + " > /dev/null 2>&1") == 0);
   // With a console that connects and never reads.
   const std::string sock = socket_path("slow");
@@ -224,8 +231,57 @@ TEST_CASE("console_e2e: a console that connects and never reads does not slow tr
   CHECK(summary_number(dir / "slow", "frames") == 100);
   CHECK(summary_number(dir / "slow", "tracking_thread_allocations") == 0);
   CHECK(summary_number(dir / "slow", "stream_consoles_accepted") == 1);
+  const double textured = summary_number(dir / "slow", "texture_frames");
+  CHECK(textured >= 1);  // frame 0 and the keyframes
+  CHECK(textured < 100);
   // 100 poses fit in the console's buffer: drops under a real backlog are
   // proven in test_console_sink.cpp (40,000 poses); here: no effect on tracking.
   CHECK(p99_slow <= std::max(1.5 * p99_none, p99_none + 3.0));  // noise of a shared machine
   CHECK(rss_slow - rss_none < 16.0);
+}
+
+TEST_CASE("console_e2e: scopetrack-console refuses an oversized or garbage stream with a clear error" *
+          doctest::timeout(test::budget_s(60))) {
+  const auto dir = test::scratch_dir("console_bad_stream");
+  struct Case {
+    const char* name;
+    std::vector<std::uint8_t> bytes;
+    const char* expect;
+  };
+  const std::vector<Case> cases = {
+      {"oversized", {0xff, 0xff, 0xff, 0x7f, 1, 2, 3, 4}, "oversized"},
+      {"garbage", {12, 0, 0, 0, 'n', 'o', 't', ' ', 'a', ' ', 's', 't', 'r', 'e', 'a', 'm'}, "rejected a buffer"},
+  };
+  for (const Case& c : cases) {
+    CAPTURE(c.name);
+    platform::Endpoint ep;
+    REQUIRE(platform::parse_endpoint("unix:" + socket_path(c.name), &ep, nullptr));
+    std::string err;
+    platform::Fd server = platform::listen_on(ep, 1, nullptr, &err);
+    REQUIRE_MESSAGE(server.valid(), err);
+    const auto log = dir / (std::string(c.name) + ".log");
+    std::string cmd = "(";
+    cmd += bin("scopetrack-console") + " unix:" + ep.path + " > " + q(log) + " 2>&1; echo $? > " +
+           q(dir / (std::string(c.name) + ".code")) + ") &";
+    REQUIRE(run(cmd) == 0);
+    platform::Fd con;
+    const std::int64_t deadline = platform::monotonic_ns() + 20'000'000'000ll;
+    while (!con.valid() && platform::monotonic_ns() < deadline) {
+      con = platform::accept_client(server.get());
+      if (!con.valid()) platform::sleep_until_ns(platform::monotonic_ns() + 10'000'000);
+    }
+    REQUIRE(con.valid());
+    REQUIRE(::send(con.get(), c.bytes.data(), c.bytes.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(c.bytes.size()));
+    con.reset();  // end of stream
+    const auto code = dir / (std::string(c.name) + ".code");
+    while (!std::filesystem::exists(code) && platform::monotonic_ns() < deadline)
+      platform::sleep_until_ns(platform::monotonic_ns() + 20'000'000);
+    platform::sleep_until_ns(platform::monotonic_ns() + 50'000'000);
+    const std::string out = test::read_file_bytes(log);
+    INFO(out);
+    CHECK(out.find(c.expect) != std::string::npos);
+    CHECK(out.find("0 poses") != std::string::npos);
+    if (std::string(c.name) == "oversized") CHECK(std::atoi(test::read_file_bytes(code).c_str()) == 1);
+    ::unlink(ep.path.c_str());
+  }
 }
