@@ -7,24 +7,26 @@
 
 namespace st {
 
-void yuv_to_rgb(int y, int u, int v, bool full_range, std::uint8_t rgb[3]) {
-  const float cb = static_cast<float>(u - 128), cr = static_cast<float>(v - 128);
-  float r, g, b;
+void yuv_to_rgb(float y, float u, float v, bool full_range, float rgb[3]) {
+  const float cb = u - 128.f, cr = v - 128.f;
+  float l = y;
   if (full_range) {  // JPEG / JFIF: Y' 0..255, Cb Cr 0..255 around 128
-    const float l = static_cast<float>(y);
-    r = l + 1.402f * cr;
-    g = l - 0.344136f * cb - 0.714136f * cr;
-    b = l + 1.772f * cb;
+    rgb[0] = l + 1.402f * cr;
+    rgb[1] = l - 0.344136f * cb - 0.714136f * cr;
+    rgb[2] = l + 1.772f * cb;
   } else {  // studio swing: Y' 16..235, Cb Cr 16..240
-    const float l = 1.164383f * static_cast<float>(y - 16);
-    r = l + 1.596027f * cr;
-    g = l - 0.391762f * cb - 0.812968f * cr;
-    b = l + 2.017232f * cb;
+    l = 1.164383f * (y - 16.f);
+    rgb[0] = l + 1.596027f * cr;
+    rgb[1] = l - 0.391762f * cb - 0.812968f * cr;
+    rgb[2] = l + 2.017232f * cb;
   }
-  const auto to8 = [](float x) { return static_cast<std::uint8_t>(std::clamp(std::lround(x), 0l, 255l)); };
-  rgb[0] = to8(r);
-  rgb[1] = to8(g);
-  rgb[2] = to8(b);
+  for (int c = 0; c < 3; ++c) rgb[c] = std::clamp(rgb[c], 0.f, 255.f);
+}
+
+void yuv_to_rgb(int y, int u, int v, bool full_range, std::uint8_t rgb[3]) {
+  float f[3];
+  yuv_to_rgb(static_cast<float>(y), static_cast<float>(u), static_cast<float>(v), full_range, f);
+  for (int c = 0; c < 3; ++c) rgb[c] = static_cast<std::uint8_t>(std::lround(f[c]));
 }
 
 Status MeshTexture::configure(const Mesh& mesh, const CameraModel& camera, const TextureConfig& config) {
@@ -52,12 +54,11 @@ Status MeshTexture::configure(const Mesh& mesh, const CameraModel& camera, const
       const Vec2 d = camera.distort_pixel(ideal);
       const long x = std::lround(d.x()), y = std::lround(d.y());
       if (!d.allFinite() || x < 0 || y < 0 || x >= config.width || y >= config.height) continue;
-      sample_of_pixel_[static_cast<std::size_t>(ry * rw + rx)] = static_cast<std::int32_t>(y * config.width + x);
+      sample_of_pixel_[static_cast<std::size_t>(ry * rw + rx)] = static_cast<std::int32_t>(x | (y << 16));
     }
 
   const auto n = static_cast<std::size_t>(mesh.triangle_count());
-  sum_.assign(3 * n, 0.f);
-  count_.assign(n, 0);
+  sum_.assign(4 * n, 0);
   touched_.assign(n, 0);
   colour_.assign(3 * n, 0.f);
   rgb8_.assign(3 * n, 0);
@@ -86,30 +87,26 @@ int MeshTexture::add_frame(const YuvFrameView& frame, const SE3& T_camera_model)
   return static_cast<int>(changed_count_);
 }
 
-// Sums every covered raster pixel's colour into its triangle.
+// Sums every covered raster pixel's Y', Cb, Cr into its triangle. The
+// conversion to RGB is linear (up to clamping), so the mean is converted
+// once per triangle instead of once per pixel.
 void MeshTexture::accumulate(const YuvFrameView& f) {
   const ImageView<const std::int32_t> ids = raster_.triangle_id();
   const bool mono = f.u.empty() || f.v.empty();
-  const int w = config_.width;
   touched_count_ = 0;
+  std::uint32_t* sums = sum_.data();
   for (int ry = 0; ry < ids.height; ++ry) {
     const std::int32_t* id_row = ids.row(ry);
     const std::int32_t* sample_row = sample_of_pixel_.data() + static_cast<std::ptrdiff_t>(ry) * ids.width;
     for (int rx = 0; rx < ids.width; ++rx) {
       const std::int32_t t = id_row[rx], s = sample_row[rx];
       if (t < 0 || s < 0) continue;
-      const int x = s % w, y = s / w;
-      std::uint8_t rgb[3];
-      const int luma = f.y(x, y);
-      if (mono)
-        rgb[0] = rgb[1] = rgb[2] = static_cast<std::uint8_t>(luma);
-      else
-        yuv_to_rgb(luma, f.u(x / 2, y / 2), f.v(x / 2, y / 2), config_.full_range, rgb);
-      const auto ti = static_cast<std::size_t>(t);
-      if (count_[ti]++ == 0) touched_[touched_count_++] = t;
-      sum_[3 * ti] += rgb[0];
-      sum_[3 * ti + 1] += rgb[1];
-      sum_[3 * ti + 2] += rgb[2];
+      const int x = s & 0xffff, y = s >> 16;
+      std::uint32_t* acc = sums + 4 * static_cast<std::ptrdiff_t>(t);
+      if (acc[3]++ == 0) touched_[touched_count_++] = t;
+      acc[0] += f.y(x, y);
+      acc[1] += mono ? 128u : f.u(x >> 1, y >> 1);
+      acc[2] += mono ? 128u : f.v(x >> 1, y >> 1);
     }
   }
 }
@@ -118,15 +115,19 @@ void MeshTexture::accumulate(const YuvFrameView& f) {
 void MeshTexture::update_touched() {
   for (std::size_t k = 0; k < touched_count_; ++k) {
     const auto t = static_cast<std::size_t>(touched_[k]);
-    const std::uint32_t n = count_[t];
-    float* sum = &sum_[3 * t];
+    std::uint32_t* acc = &sum_[4 * t];
+    const std::uint32_t n = acc[3];
     if (n >= static_cast<std::uint32_t>(config_.min_pixels)) {
+      const float inv_n = 1.f / static_cast<float>(n);
+      float mean_rgb[3];
+      yuv_to_rgb(static_cast<float>(acc[0]) * inv_n, static_cast<float>(acc[1]) * inv_n,
+                 static_cast<float>(acc[2]) * inv_n, config_.full_range, mean_rgb);
       const float w = weight_[t];
       float* c = &colour_[3 * t];
       std::uint8_t* c8 = &rgb8_[3 * t];
       bool changed = weight_[t] == 0;
       for (int ch = 0; ch < 3; ++ch) {
-        c[ch] = (w * c[ch] + sum[ch] / static_cast<float>(n)) / (w + 1.f);
+        c[ch] = (w * c[ch] + mean_rgb[ch]) / (w + 1.f);
         const auto v = static_cast<std::uint8_t>(std::clamp(std::lround(c[ch]), 0l, 255l));
         changed = changed || v != c8[ch];
         c8[ch] = v;
@@ -135,8 +136,7 @@ void MeshTexture::update_touched() {
       ++seen_[t];
       if (changed) changed_[changed_count_++] = {static_cast<std::uint32_t>(t), c8[0], c8[1], c8[2]};
     }
-    count_[t] = 0;
-    sum[0] = sum[1] = sum[2] = 0.f;
+    acc[0] = acc[1] = acc[2] = acc[3] = 0;
   }
 }
 

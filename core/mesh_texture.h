@@ -48,7 +48,8 @@ struct YuvFrameView {
   GrayView y, u, v;
 };
 
-// BT.601 Y'CbCr -> RGB, rounded and clamped to 0..255.
+// BT.601 Y'CbCr -> RGB, clamped to 0..255 (the 8-bit form rounds).
+void yuv_to_rgb(float y, float u, float v, bool full_range, float rgb[3]);
 void yuv_to_rgb(int y, int u, int v, bool full_range, std::uint8_t rgb[3]);
 
 class MeshTexture {
@@ -77,9 +78,8 @@ class MeshTexture {
   TextureConfig config_;
   CameraModel camera_;
   MeshRasterizer raster_;
-  std::vector<std::int32_t> sample_of_pixel_;  // raster pixel -> frame pixel index (y * width + x), -1 outside
-  std::vector<float> sum_;                     // per triangle: R, G, B sums of this frame
-  std::vector<std::uint32_t> count_;           // per triangle: pixels of this frame
+  std::vector<std::int32_t> sample_of_pixel_;  // raster pixel -> frame pixel x | y << 16, -1 outside
+  std::vector<std::uint32_t> sum_;             // per triangle: Y', Cb, Cr sums and the pixel count of this frame
   std::vector<std::int32_t> touched_;          // triangles with count_ > 0 this frame
   std::size_t touched_count_ = 0;
   std::vector<float> colour_;                  // per triangle: running mean R, G, B (0..255)
