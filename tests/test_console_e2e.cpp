@@ -24,6 +24,7 @@
 #include "hal/sequence_loader.h"
 #include "platform/clock.h"
 #include "platform/socket.h"
+#include "support/shell.h"
 #include "support/support.h"
 #include "tools/eval/eval_report.h"
 #include "tools/sim/renderer.h"
@@ -33,17 +34,9 @@ using namespace st;
 
 namespace {
 
-int run(const std::string& cmd) {
-  const int status = std::system(cmd.c_str());
-  return status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-std::string q(const std::filesystem::path& p) {
-  std::string out(1, '\'');
-  out.append(p.string());
-  out.push_back('\'');
-  return out;
-}
-std::string bin(const std::string& name) { return q(test::bin_dir() / name); }
+int run(const std::string& cmd) { return test::run_shell(cmd); }
+std::string q(const std::filesystem::path& p) { return test::shell_quoted(p); }
+std::string bin(const std::string& name) { return test::bin_command(name); }
 std::string socket_path(const char* name) {
   return "/tmp/st-e2e-" + std::to_string(::getpid()) + "-" + name + ".sock";
 }

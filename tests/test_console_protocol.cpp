@@ -9,11 +9,11 @@
 #include <random>
 #include <string>
 #include <vector>
-#include <sys/wait.h>
 
 #include "hal/stream_protocol.h"
 #include "platform/socket.h"
 #include "support/alloc_guard.h"
+#include "support/shell.h"
 #include "support/support.h"
 #include "support/tiny_sequence.h"
 #include "tools/console/console_session.h"
@@ -213,9 +213,7 @@ TEST_CASE("console_protocol: flatc --json (an independent decoder) reads a captu
   const std::string cmd = std::string(SCOPETRACK_FLATC) + " --json --strict-json --size-prefixed --raw-binary -o '" +
                           dir.string() + "' '" + SCOPETRACK_STREAM_SCHEMA + "' -- '" + (dir / "pose.bin").string() +
                           "' 2> '" + (dir / "flatc.err").string() + "'";
-  const int status = std::system(cmd.c_str());
-  REQUIRE_MESSAGE((status != -1 && WIFEXITED(status) && WEXITSTATUS(status) == 0),
-                  (cmd + "\n" + test::read_file_bytes(dir / "flatc.err")));
+  REQUIRE_MESSAGE(test::run_shell(cmd) == 0, (cmd + "\n" + test::read_file_bytes(dir / "flatc.err")));
   const std::string json = test::read_file_bytes(dir / "pose.json");
   INFO(json);
   CHECK(json.find("\"payload_type\": \"PoseUpdate\"") != std::string::npos);

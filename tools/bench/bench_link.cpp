@@ -4,36 +4,16 @@
 // 1280x720 view, on the texture thread; and what the tracking thread pays
 // per frame for the stream: push_pose() into a running sink.
 #include <cstdio>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "bench.h"
+#include "bench_liver.h"
 #include "core/mesh_texture.h"
 #include "hal/stream_sink.h"
-#include "tests/support/raster_scene.h"
-#include "tests/support/test_ply.h"
 
 namespace st::bench {
 namespace {
-
-// A pose with the liver filling about 60% of the view (as the raster stage).
-SE3 liver_view(const Mesh& liver) {
-  MeshRasterizer r;
-  RasterConfig cfg;
-  cfg.width = 1280;
-  cfg.height = 720;
-  cfg.downscale = 4;
-  if (!r.configure(liver, cfg).ok()) return SE3();
-  SE3 T;
-  for (double d = 900.0; d > 100.0; d *= 0.98) {
-    T = test::look_at(test::bbox_centre(liver), Vec3(0.25, -0.35, 1.0), d, 0.3);
-    r.render(T, test::bench_pinhole());
-    if (r.covered_pixels() >= 0.6 * 320 * 180) break;
-  }
-  return T;
-}
 
 Row time_texture(const Mesh& liver, const SE3& T, int downscale, int n) {
   Row row;
@@ -90,17 +70,13 @@ Row time_push_pose(const Mesh& liver, int n) {
 }
 
 int run(const Options& opt) {
-  const std::string path = opt.shared_dir + "/data/liver/liver.ply";
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  auto mesh = test::read_binary_ply_for_tests(ss.str());
+  auto mesh = load_bench_liver(opt);
   if (!mesh.ok()) {
-    std::fprintf(stderr, "link: cannot load %s: %s\n", path.c_str(), mesh.message().c_str());
+    std::fprintf(stderr, "link: %s\n", mesh.message().c_str());
     return 1;
   }
   const int n = opt.iterations > 0 ? opt.iterations : 100;
-  const SE3 T = liver_view(mesh.value());
+  const SE3 T = liver_view_filling(mesh.value(), 0.6);
   for (int ds : {1, 2}) report(opt, time_texture(mesh.value(), T, ds, n));
   report(opt, time_push_pose(mesh.value(), 10 * n));
   return 0;
