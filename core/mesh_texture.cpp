@@ -29,10 +29,13 @@ void yuv_to_rgb(int y, int u, int v, bool full_range, std::uint8_t rgb[3]) {
   for (int c = 0; c < 3; ++c) rgb[c] = static_cast<std::uint8_t>(std::lround(f[c]));
 }
 
-Status MeshTexture::configure(const Mesh& mesh, const CameraModel& camera, const TextureConfig& config) {
-  if (config.width <= 0 || config.height <= 0 || config.width > kMaxImageWidth || config.height > kMaxImageHeight)
+Status MeshTexture::configure(const Mesh& mesh, const CameraModel& camera,
+                              const TextureConfig& config) {
+  if (config.width <= 0 || config.height <= 0 || config.width > kMaxImageWidth ||
+      config.height > kMaxImageHeight)
     return make_error("texture: frame size out of range");
-  if (config.max_weight < 1 || config.max_weight > 255) return make_error("texture: max_weight must be 1..255");
+  if (config.max_weight < 1 || config.max_weight > 255)
+    return make_error("texture: max_weight must be 1..255");
   if (config.min_pixels < 1) return make_error("texture: min_pixels must be >= 1");
   if (Status s = CameraModel::validate(camera.pinhole(), camera.distortion()); !s) return s;
   RasterConfig rc;
@@ -54,7 +57,8 @@ Status MeshTexture::configure(const Mesh& mesh, const CameraModel& camera, const
       const Vec2 d = camera.distort_pixel(ideal);
       const long x = std::lround(d.x()), y = std::lround(d.y());
       if (!d.allFinite() || x < 0 || y < 0 || x >= config.width || y >= config.height) continue;
-      sample_of_pixel_[static_cast<std::size_t>(ry * rw + rx)] = static_cast<std::int32_t>(x | (y << 16));
+      sample_of_pixel_[static_cast<std::size_t>(ry * rw + rx)] =
+          static_cast<std::int32_t>(x | (y << 16));
     }
 
   const auto n = static_cast<std::size_t>(mesh.triangle_count());
@@ -78,8 +82,9 @@ int MeshTexture::add_frame(const YuvFrameView& frame, const SE3& T_camera_model)
   changed_count_ = 0;
   if (frame.y.width != config_.width || frame.y.height != config_.height || sum_.empty()) return 0;
   const bool mono = frame.u.empty() || frame.v.empty();
-  if (!mono && (frame.u.width < (config_.width + 1) / 2 || frame.u.height < (config_.height + 1) / 2 ||
-                frame.v.width < frame.u.width || frame.v.height < frame.u.height))
+  if (!mono &&
+      (frame.u.width < (config_.width + 1) / 2 || frame.u.height < (config_.height + 1) / 2 ||
+       frame.v.width < frame.u.width || frame.v.height < frame.u.height))
     return 0;
   raster_.render(T_camera_model, camera_.pinhole());
   accumulate(frame);
@@ -97,7 +102,8 @@ void MeshTexture::accumulate(const YuvFrameView& f) {
   std::uint32_t* sums = sum_.data();
   for (int ry = 0; ry < ids.height; ++ry) {
     const std::int32_t* id_row = ids.row(ry);
-    const std::int32_t* sample_row = sample_of_pixel_.data() + static_cast<std::ptrdiff_t>(ry) * ids.width;
+    const std::int32_t* sample_row =
+        sample_of_pixel_.data() + static_cast<std::ptrdiff_t>(ry) * ids.width;
     for (int rx = 0; rx < ids.width; ++rx) {
       const std::int32_t t = id_row[rx], s = sample_row[rx];
       if (t < 0 || s < 0) continue;
@@ -134,7 +140,8 @@ void MeshTexture::update_touched() {
       }
       weight_[t] = static_cast<std::uint8_t>(std::min(weight_[t] + 1, config_.max_weight));
       ++seen_[t];
-      if (changed) changed_[changed_count_++] = {static_cast<std::uint32_t>(t), c8[0], c8[1], c8[2]};
+      if (changed)
+        changed_[changed_count_++] = {static_cast<std::uint32_t>(t), c8[0], c8[1], c8[2]};
     }
     acc[0] = acc[1] = acc[2] = acc[3] = 0;
   }

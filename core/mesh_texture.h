@@ -37,10 +37,12 @@ struct TriangleRgb {
 
 struct TextureConfig {
   int width = 0, height = 0;  // frame size = calibration size
-  int downscale = 1;          // 1, 2 or 4: the id buffer's resolution; a raster pixel samples the frame at its centre
-  int max_weight = 10;        // Algorithm 1's cap on the running weight
-  int min_pixels = 3;         // a triangle seen on fewer raster pixels in a frame is left alone (edges, slivers)
-  bool full_range = true;     // Y'CbCr range (see above)
+  int downscale =
+      1;  // 1, 2 or 4: the id buffer's resolution; a raster pixel samples the frame at its centre
+  int max_weight = 10;  // Algorithm 1's cap on the running weight
+  int min_pixels =
+      3;  // a triangle seen on fewer raster pixels in a frame is left alone (edges, slivers)
+  bool full_range = true;  // Y'CbCr range (see above)
 };
 
 // A 4:2:0 frame: y full size, u/v (w+1)/2 x (h+1)/2; u/v empty for mono.
@@ -78,12 +80,14 @@ class MeshTexture {
   TextureConfig config_;
   CameraModel camera_;
   MeshRasterizer raster_;
-  std::vector<std::int32_t> sample_of_pixel_;  // raster pixel -> frame pixel x | y << 16, -1 outside
-  std::vector<std::uint32_t> sum_;             // per triangle: Y', Cb, Cr sums and the pixel count of this frame
-  std::vector<std::int32_t> touched_;          // triangles with count_ > 0 this frame
+  std::vector<std::int32_t>
+      sample_of_pixel_;  // raster pixel -> frame pixel x | y << 16, -1 outside
+  std::vector<std::uint32_t>
+      sum_;  // per triangle: Y', Cb, Cr sums and the pixel count of this frame
+  std::vector<std::int32_t> touched_;  // triangles with count_ > 0 this frame
   std::size_t touched_count_ = 0;
-  std::vector<float> colour_;                  // per triangle: running mean R, G, B (0..255)
-  std::vector<std::uint8_t> rgb8_;             // per triangle: the colour as last reported
+  std::vector<float> colour_;       // per triangle: running mean R, G, B (0..255)
+  std::vector<std::uint8_t> rgb8_;  // per triangle: the colour as last reported
   std::vector<std::uint8_t> weight_;
   std::vector<std::uint32_t> seen_;
   std::vector<TriangleRgb> changed_;

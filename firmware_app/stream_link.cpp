@@ -23,18 +23,21 @@ Status StreamLink::configure(const StreamLinkConfig& config, const LoadedSequenc
   TextureConfig tc;
   tc.width = seq.config.width;
   tc.height = seq.config.height;
-  tc.downscale = config.texture_downscale > 0 ? config.texture_downscale : (tc.width <= 960 ? 1 : 2);
-  // C420jpeg (and no tag: the Y4M default) is full range; the other 4:2:0 tags are ffmpeg's studio range.
+  tc.downscale =
+      config.texture_downscale > 0 ? config.texture_downscale : (tc.width <= 960 ? 1 : 2);
+  // C420jpeg (and no tag: the Y4M default) is full range; the other 4:2:0 tags are ffmpeg's studio
+  // range.
   const std::string& tag = seq.video_header.chroma_tag;
   tc.full_range = tag.empty() || tag == "420jpeg";
-  return texture_.configure(seq.mesh, CameraModel(seq.config.K, seq.config.distortion), tc, config.texture_slots,
-                            &sink_);
+  return texture_.configure(seq.mesh, CameraModel(seq.config.K, seq.config.distortion), tc,
+                            config.texture_slots, &sink_);
 }
 
 Status StreamLink::start() {
   sink_.start();
   texture_.start();
-  if (config_.wait_consoles > 0 && !sink_.wait_for_consoles(config_.wait_consoles, config_.wait_timeout_s))
+  if (config_.wait_consoles > 0 &&
+      !sink_.wait_for_consoles(config_.wait_consoles, config_.wait_timeout_s))
     return make_error("no console connected to " + sink_.endpoint().to_string() + " within " +
                       std::to_string(static_cast<int>(config_.wait_timeout_s)) + " s");
   return Status::Ok();
@@ -53,8 +56,9 @@ void StreamLink::frame_done(const FrameRef& frame, const TrackResult& r, double 
   sink_.push_pose(p);
   if (!posed) return;
   ++posed_frames_;
-  const bool wanted = config_.texture_every > 0 ? (posed_frames_ - 1) % config_.texture_every == 0
-                                                : (r.keyframe || r.state == TrackState::kInitialised);
+  const bool wanted = config_.texture_every > 0
+                          ? (posed_frames_ - 1) % config_.texture_every == 0
+                          : (r.keyframe || r.state == TrackState::kInitialised);
   if (wanted && !texture_.try_submit(frame, r.T_camera_model)) {
     ++texture_skips_;
     sink_.note_overrun();
@@ -73,11 +77,13 @@ void StreamLink::finish(std::vector<std::pair<std::string, double>>* fields) {
   fields->emplace_back("stream_pose_overruns", static_cast<double>(s.pose_overruns));
   fields->emplace_back("stream_consoles_accepted", static_cast<double>(s.consoles_accepted));
   fields->emplace_back("stream_dropped_messages", static_cast<double>(s.dropped_messages));
-  fields->emplace_back("stream_sink_thread_allocations", static_cast<double>(s.sink_thread_allocations));
+  fields->emplace_back("stream_sink_thread_allocations",
+                       static_cast<double>(s.sink_thread_allocations));
   fields->emplace_back("texture_frames", static_cast<double>(texture_.frames_textured()));
   fields->emplace_back("texture_skipped_frames", static_cast<double>(texture_skips_));
   fields->emplace_back("texture_colour_updates", static_cast<double>(texture_.colours_sent()));
-  fields->emplace_back("texture_thread_allocations", static_cast<double>(texture_.worker_allocations()));
+  fields->emplace_back("texture_thread_allocations",
+                       static_cast<double>(texture_.worker_allocations()));
 }
 
 }  // namespace st::app

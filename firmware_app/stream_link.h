@@ -18,12 +18,13 @@ namespace st::app {
 
 struct StreamLinkConfig {
   platform::Endpoint endpoint;
-  int wait_consoles = 0;        // start only once this many consoles are connected
+  int wait_consoles = 0;  // start only once this many consoles are connected
   double wait_timeout_s = 30;
-  int texture_every = 0;        // 0: texture keyframes (and the initial frame); k: every k-th frame with a pose
+  int texture_every =
+      0;  // 0: texture keyframes (and the initial frame); k: every k-th frame with a pose
   int texture_slots = 4;
-  int texture_downscale = 0;    // 0: 1 up to 960 px wide, else 2
-  double flush_timeout_s = 5;   // at the end: time for consoles to read what is queued
+  int texture_downscale = 0;   // 0: 1 up to 960 px wide, else 2
+  double flush_timeout_s = 5;  // at the end: time for consoles to read what is queued
 };
 
 class StreamLink : public FrameObserver {

@@ -19,10 +19,11 @@ void copy_plane(GrayView src, Image<std::uint8_t>* dst) {
 
 TextureWorker::~TextureWorker() { stop(); }
 
-Status TextureWorker::configure(const Mesh& mesh, const CameraModel& camera, const TextureConfig& config, int slots,
-                                StreamSink* sink) {
+Status TextureWorker::configure(const Mesh& mesh, const CameraModel& camera,
+                                const TextureConfig& config, int slots, StreamSink* sink) {
   if (thread_.joinable()) return make_error("texture worker: configure() while running");
-  if (slots < 1 || slots > kMaxSlots) return make_error("texture worker: slots must be 1.." + std::to_string(kMaxSlots));
+  if (slots < 1 || slots > kMaxSlots)
+    return make_error("texture worker: slots must be 1.." + std::to_string(kMaxSlots));
   if (Status s = texture_.configure(mesh, camera, config); !s) return s;
   sink_ = sink;
   slots_ = std::vector<Slot>(static_cast<std::size_t>(slots));
@@ -71,7 +72,8 @@ void TextureWorker::run() {
     work_.pop_wait(&i);
     if (i < 0) break;
     Slot& s = slots_[static_cast<std::size_t>(i)];
-    YuvFrameView f{s.y.cview(), s.mono ? GrayView{} : s.u.cview(), s.mono ? GrayView{} : s.v.cview()};
+    YuvFrameView f{s.y.cview(), s.mono ? GrayView{} : s.u.cview(),
+                   s.mono ? GrayView{} : s.v.cview()};
     const int changed = texture_.add_frame(f, s.T_camera_model);
     free_.try_push(i);
     if (sink_ && changed > 0) sink_->push_colours(texture_.changed());

@@ -33,8 +33,8 @@ class TextureWorker {
   TextureWorker& operator=(const TextureWorker&) = delete;
 
   // sink may be null (texture kept locally only). slots: 1..kMaxSlots frame copies.
-  Status configure(const Mesh& mesh, const CameraModel& camera, const TextureConfig& config, int slots,
-                   StreamSink* sink);
+  Status configure(const Mesh& mesh, const CameraModel& camera, const TextureConfig& config,
+                   int slots, StreamSink* sink);
   void start();
   // Tracking thread: false when no slot is free (the frame is skipped).
   bool try_submit(const FrameRef& frame, const SE3& T_camera_model);

@@ -9,20 +9,28 @@ namespace {
 
 stream::TrackingState to_wire(TrackState s) {
   switch (s) {
-    case TrackState::kInitialised: return stream::TrackingState::Initialised;
-    case TrackState::kTracking: return stream::TrackingState::Tracking;
-    case TrackState::kRelocalised: return stream::TrackingState::Relocalised;
-    case TrackState::kLost: break;
+    case TrackState::kInitialised:
+      return stream::TrackingState::Initialised;
+    case TrackState::kTracking:
+      return stream::TrackingState::Tracking;
+    case TrackState::kRelocalised:
+      return stream::TrackingState::Relocalised;
+    case TrackState::kLost:
+      break;
   }
   return stream::TrackingState::Lost;
 }
 
 TrackState from_wire(stream::TrackingState s) {
   switch (s) {
-    case stream::TrackingState::Initialised: return TrackState::kInitialised;
-    case stream::TrackingState::Tracking: return TrackState::kTracking;
-    case stream::TrackingState::Relocalised: return TrackState::kRelocalised;
-    default: break;  // Lost, or a value a newer sender added: not trustworthy
+    case stream::TrackingState::Initialised:
+      return TrackState::kInitialised;
+    case stream::TrackingState::Tracking:
+      return TrackState::kTracking;
+    case stream::TrackingState::Relocalised:
+      return TrackState::kRelocalised;
+    default:
+      break;  // Lost, or a value a newer sender added: not trustworthy
   }
   return TrackState::kLost;
 }
@@ -90,7 +98,8 @@ void set_pose(PoseSample* s, const SE3& T_camera_model) {
 }
 
 SE3 T_model_camera(const PoseSample& s) {
-  return SE3(Quat(s.q_xyzw[3], s.q_xyzw[0], s.q_xyzw[1], s.q_xyzw[2]), Vec3(s.t_mm[0], s.t_mm[1], s.t_mm[2]));
+  return SE3(Quat(s.q_xyzw[3], s.q_xyzw[0], s.q_xyzw[1], s.q_xyzw[2]),
+             Vec3(s.t_mm[0], s.t_mm[1], s.t_mm[2]));
 }
 
 std::uint64_t mesh_checksum(const Mesh& mesh) {
@@ -110,7 +119,8 @@ StreamEncoder::StreamEncoder() : fbb_(kBuilderBytes) {
   fbb_.Clear();
 }
 
-std::span<const std::uint8_t> StreamEncoder::finish(stream::Payload type, flatbuffers::Offset<void> payload) {
+std::span<const std::uint8_t> StreamEncoder::finish(stream::Payload type,
+                                                    flatbuffers::Offset<void> payload) {
   const auto root = stream::CreateMessage(fbb_, type, payload);
   stream::FinishSizePrefixedMessageBuffer(fbb_, root);
   return {fbb_.GetBufferPointer(), fbb_.GetSize()};
@@ -120,16 +130,17 @@ std::span<const std::uint8_t> StreamEncoder::hello(const StreamHello& h) {
   fbb_.Clear();
   const double* k = h.distortion.k.data();
   const stream::Intrinsics in(h.K.fx, h.K.fy, h.K.cx, h.K.cy, k[0], k[1], k[2], k[3], k[4]);
-  const auto m = stream::CreateHello(fbb_, h.protocol_version, h.mesh_triangle_count, h.mesh_checksum,
-                                     static_cast<std::uint16_t>(h.image_width),
+  const auto m = stream::CreateHello(fbb_, h.protocol_version, h.mesh_triangle_count,
+                                     h.mesh_checksum, static_cast<std::uint16_t>(h.image_width),
                                      static_cast<std::uint16_t>(h.image_height), &in, h.source_fps);
   return finish(stream::Payload::Hello, m.Union());
 }
 
 std::span<const std::uint8_t> StreamEncoder::pose(const PoseSample& p) {
   fbb_.Clear();
-  const stream::Pose wire(p.frame, to_wire(p.state), p.inliers, p.timestamp_ns, p.q_xyzw[0], p.q_xyzw[1],
-                          p.q_xyzw[2], p.q_xyzw[3], p.t_mm[0], p.t_mm[1], p.t_mm[2], p.quality, p.latency_us);
+  const stream::Pose wire(p.frame, to_wire(p.state), p.inliers, p.timestamp_ns, p.q_xyzw[0],
+                          p.q_xyzw[1], p.q_xyzw[2], p.q_xyzw[3], p.t_mm[0], p.t_mm[1], p.t_mm[2],
+                          p.quality, p.latency_us);
   const auto m = stream::CreatePoseUpdate(fbb_, &wire);
   return finish(stream::Payload::PoseUpdate, m.Union());
 }
@@ -152,7 +163,8 @@ std::span<const std::uint8_t> StreamEncoder::finish_colours() {
 std::span<const std::uint8_t> StreamEncoder::colours(std::span<const ColourUpdate> c) {
   const int n = static_cast<int>(std::min<std::size_t>(c.size(), kMaxColoursPerDelta));
   stream::TriangleColour* out = begin_colours(n);
-  for (int i = 0; i < n; ++i) out[i] = stream::TriangleColour(c[i].triangle, c[i].r, c[i].g, c[i].b);
+  for (int i = 0; i < n; ++i)
+    out[i] = stream::TriangleColour(c[i].triangle, c[i].r, c[i].g, c[i].b);
   return finish_colours();
 }
 
@@ -164,20 +176,22 @@ std::span<const std::uint8_t> StreamEncoder::health(const HealthSample& h) {
 
 Result<DecodedMessage> decode_message(std::span<const std::uint8_t> b) {
   if (b.size() < sizeof(flatbuffers::uoffset_t))
-    return make_error("truncated message: " + std::to_string(b.size()) + " bytes, less than the 4-byte size prefix");
+    return make_error("truncated message: " + std::to_string(b.size()) +
+                      " bytes, less than the 4-byte size prefix");
   const std::size_t declared = flatbuffers::ReadScalar<flatbuffers::uoffset_t>(b.data());
   if (declared > kMaxStreamMessageBytes)
     return make_error("oversized message: the size prefix declares " + std::to_string(declared) +
                       " bytes, the limit is " + std::to_string(kMaxStreamMessageBytes) +
                       " (not a ScopeTrack stream, or corrupt)");
   if (declared + sizeof(flatbuffers::uoffset_t) != b.size())
-    return make_error("truncated message: the size prefix declares " + std::to_string(declared) + " bytes, got " +
-                      std::to_string(b.size() - sizeof(flatbuffers::uoffset_t)));
+    return make_error("truncated message: the size prefix declares " + std::to_string(declared) +
+                      " bytes, got " + std::to_string(b.size() - sizeof(flatbuffers::uoffset_t)));
   if (!stream::SizePrefixedMessageBufferHasIdentifier(b.data()))
     return make_error("not a ScopeTrack stream message (file identifier is not \"STCS\")");
   flatbuffers::Verifier verifier(b.data(), b.size(), 16, 64);
   if (!stream::VerifySizePrefixedMessageBuffer(verifier))
-    return make_error("corrupt message: FlatBuffers verification failed (" + std::to_string(b.size()) + " bytes)");
+    return make_error("corrupt message: FlatBuffers verification failed (" +
+                      std::to_string(b.size()) + " bytes)");
   const stream::Message* msg = stream::GetSizePrefixedMessage(b.data());
   DecodedMessage out;
   if (const auto* h = msg->payload_as_Hello()) {
@@ -200,7 +214,8 @@ Result<DecodedMessage> decode_message(std::span<const std::uint8_t> b) {
   return out;
 }
 
-MessageFramer::MessageFramer() : buf_(2 * (kMaxStreamMessageBytes + sizeof(flatbuffers::uoffset_t))) {}
+MessageFramer::MessageFramer()
+    : buf_(2 * (kMaxStreamMessageBytes + sizeof(flatbuffers::uoffset_t))) {}
 
 std::span<std::uint8_t> MessageFramer::write_area() {
   if (begin_ > 0 && (end_ == buf_.size() || begin_ % 8 != 0)) {
@@ -215,13 +230,16 @@ std::span<std::uint8_t> MessageFramer::write_area() {
 
 void MessageFramer::commit(std::size_t n) { end_ = std::min(buf_.size(), end_ + n); }
 
-MessageFramer::Next MessageFramer::next(std::span<const std::uint8_t>* message, std::string* error) {
+MessageFramer::Next MessageFramer::next(std::span<const std::uint8_t>* message,
+                                        std::string* error) {
   constexpr std::size_t kPrefix = sizeof(flatbuffers::uoffset_t);
   if (end_ - begin_ < kPrefix) return Next::kNeedMore;
-  const std::size_t declared = flatbuffers::ReadScalar<flatbuffers::uoffset_t>(buf_.data() + begin_);
+  const std::size_t declared =
+      flatbuffers::ReadScalar<flatbuffers::uoffset_t>(buf_.data() + begin_);
   if (declared > kMaxStreamMessageBytes) {
-    *error = "oversized message: the size prefix declares " + std::to_string(declared) + " bytes, the limit is " +
-             std::to_string(kMaxStreamMessageBytes) + " (not a ScopeTrack stream, or corrupt)";
+    *error = "oversized message: the size prefix declares " + std::to_string(declared) +
+             " bytes, the limit is " + std::to_string(kMaxStreamMessageBytes) +
+             " (not a ScopeTrack stream, or corrupt)";
     return Next::kError;
   }
   if (end_ - begin_ < kPrefix + declared) return Next::kNeedMore;

@@ -8,13 +8,13 @@
 // MessageFramer::next() allocate only for an error message.
 #pragma once
 
+#include <flatbuffers/flatbuffers.h>
+
 #include <cstddef>
 #include <cstdint>
 #include <span>
 #include <string>
 #include <vector>
-
-#include <flatbuffers/flatbuffers.h>
 
 #include "core/camera.h"
 #include "core/mesh.h"
@@ -82,7 +82,8 @@ class StreamEncoder {
   std::span<const std::uint8_t> pose(const PoseSample& p);
   // At most kMaxColoursPerDelta entries are encoded (the rest are ignored).
   std::span<const std::uint8_t> colours(std::span<const ColourUpdate> c);
-  // Colours built in place: begin_colours(n) gives room for n (<= kMaxColoursPerDelta), then finish.
+  // Colours built in place: begin_colours(n) gives room for n (<= kMaxColoursPerDelta), then
+  // finish.
   stream::TriangleColour* begin_colours(int n);
   std::span<const std::uint8_t> finish_colours();
   std::span<const std::uint8_t> health(const HealthSample& h);

@@ -60,7 +60,8 @@ Status StreamSink::configure(const StreamSinkConfig& config, const StreamHello& 
   if (config.max_clients < 1 || config.max_clients > kMaxPollFds - 2)
     return make_error("stream sink: max_clients must be 1.." + std::to_string(kMaxPollFds - 2));
   if (config.client_buffer_bytes < kMinClientBufferBytes)
-    return make_error("stream sink: client_buffer_bytes must be at least " + std::to_string(kMinClientBufferBytes));
+    return make_error("stream sink: client_buffer_bytes must be at least " +
+                      std::to_string(kMinClientBufferBytes));
   if (hello.mesh_triangle_count == 0 || hello.mesh_triangle_count > kMaxMeshTriangles)
     return make_error("stream sink: mesh triangle count out of range");
   config_ = config;
@@ -70,7 +71,8 @@ Status StreamSink::configure(const StreamSinkConfig& config, const StreamHello& 
   listen_fd_ = platform::listen_on(config.endpoint, 16, &bound_, &error);
   if (!listen_fd_.valid()) return make_error("stream sink: " + error);
   wake_fd_ = platform::Fd(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC));
-  if (!wake_fd_.valid()) return make_error(std::string("stream sink: eventfd: ") + std::strerror(errno));
+  if (!wake_fd_.valid())
+    return make_error(std::string("stream sink: eventfd: ") + std::strerror(errno));
   const std::size_t words = (triangles_ + 63) / 64;
   colour_ = std::vector<std::atomic<std::uint32_t>>(triangles_);
   dirty_ = std::vector<std::atomic<std::uint64_t>>(words);
@@ -112,16 +114,19 @@ bool StreamSink::push_pose(const PoseSample& pose) {
 void StreamSink::push_colours(std::span<const ColourUpdate> colours) {
   for (const ColourUpdate& c : colours) {
     if (c.triangle >= triangles_) continue;
-    colour_[c.triangle].store(kColouredBit | (std::uint32_t{c.r} << 16) | (std::uint32_t{c.g} << 8) | c.b,
-                              std::memory_order_relaxed);
+    colour_[c.triangle].store(
+        kColouredBit | (std::uint32_t{c.r} << 16) | (std::uint32_t{c.g} << 8) | c.b,
+        std::memory_order_relaxed);
     // release: the sink that sees the bit sees the colour.
-    dirty_[c.triangle / 64].fetch_or(std::uint64_t{1} << (c.triangle % 64), std::memory_order_release);
+    dirty_[c.triangle / 64].fetch_or(std::uint64_t{1} << (c.triangle % 64),
+                                     std::memory_order_release);
   }
   if (!colours.empty()) wake();
 }
 
 bool StreamSink::wait_for_consoles(int n, double timeout_s) const {
-  const std::int64_t deadline = platform::monotonic_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
+  const std::int64_t deadline =
+      platform::monotonic_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
   while (connected_.load() < n) {
     if (platform::monotonic_ns() > deadline) return false;
     platform::sleep_until_ns(platform::monotonic_ns() + 2'000'000);
@@ -136,7 +141,8 @@ void StreamSink::stop(double flush_timeout_s) {
   const std::uint64_t one = 1;
   [[maybe_unused]] const ssize_t n = ::write(wake_fd_.get(), &one, sizeof(one));
   thread_.join();
-  if (bound_.kind == platform::Endpoint::Kind::kUnix && listen_fd_.valid()) ::unlink(bound_.path.c_str());
+  if (bound_.kind == platform::Endpoint::Kind::kUnix && listen_fd_.valid())
+    ::unlink(bound_.path.c_str());
   listen_fd_.reset();
 }
 
@@ -161,7 +167,8 @@ void StreamSink::run() {
     sink_allocs_.store(platform::thread_allocation_count() - allocs0, std::memory_order_relaxed);
   }
   // Flush: what the producers queued before stop() reaches consoles that read.
-  const std::int64_t deadline = platform::monotonic_ns() + static_cast<std::int64_t>(flush_timeout_s_ * 1e9);
+  const std::int64_t deadline =
+      platform::monotonic_ns() + static_cast<std::int64_t>(flush_timeout_s_ * 1e9);
   do {
     poll_once(10);
   } while (anything_pending() && platform::monotonic_ns() < deadline);
@@ -193,7 +200,8 @@ void StreamSink::poll_once(int timeout_ms) {
     if (!(fds[k].revents & (POLLIN | POLLHUP | POLLERR))) continue;
     // Consoles send nothing we use: read to notice a close, discard the rest.
     const ssize_t r = ::recv(c.fd.get(), scratch_.data(), scratch_.size(), MSG_DONTWAIT);
-    if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) close_client(c);
+    if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR))
+      close_client(c);
   }
   drain_poses();
   collect_colours();
@@ -209,7 +217,8 @@ void StreamSink::accept_consoles() {
   for (;;) {
     platform::Fd fd = platform::accept_client(listen_fd_.get());
     if (!fd.valid()) return;
-    auto free_slot = std::find_if(clients_.begin(), clients_.end(), [](const Client& c) { return !c.fd.valid(); });
+    auto free_slot = std::find_if(clients_.begin(), clients_.end(),
+                                  [](const Client& c) { return !c.fd.valid(); });
     if (free_slot == clients_.end()) {
       refused_.fetch_add(1);
       continue;  // fd closes here: the console sees the connection end
@@ -262,13 +271,15 @@ void StreamSink::fill_client(Client& c) {
   if (c.has_pending_pose) return;  // poses first: no colours while a pose waits
   std::size_t w = 0;
   while (c.room() >= colour_message_bytes(64) && c.end - c.begin < kColourBacklogBytes) {
-    const int max_n = static_cast<int>(std::min<std::size_t>(kMaxColoursPerDelta, (c.room() - 128) / 8));
+    const int max_n =
+        static_cast<int>(std::min<std::size_t>(kMaxColoursPerDelta, (c.room() - 128) / 8));
     int n = 0;
     for (; w < c.dirty.size() && n < max_n; ++w) {
       while (c.dirty[w] != 0 && n < max_n) {
         const int bit = std::countr_zero(c.dirty[w]);
         c.dirty[w] &= c.dirty[w] - 1;
-        c.ids[static_cast<std::size_t>(n++)] = static_cast<std::uint32_t>(w * 64 + static_cast<std::size_t>(bit));
+        c.ids[static_cast<std::size_t>(n++)] =
+            static_cast<std::uint32_t>(w * 64 + static_cast<std::size_t>(bit));
       }
       if (c.dirty[w] != 0) break;  // the delta is full: continue this word next time
     }
@@ -277,8 +288,9 @@ void StreamSink::fill_client(Client& c) {
     for (int i = 0; i < n; ++i) {
       const std::uint32_t t = c.ids[static_cast<std::size_t>(i)];
       const std::uint32_t v = colour_[t].load(std::memory_order_relaxed);
-      out[i] = stream::TriangleColour(t, static_cast<std::uint8_t>(v >> 16), static_cast<std::uint8_t>(v >> 8),
-                                      static_cast<std::uint8_t>(v));
+      out[i] =
+          stream::TriangleColour(t, static_cast<std::uint8_t>(v >> 16),
+                                 static_cast<std::uint8_t>(v >> 8), static_cast<std::uint8_t>(v));
     }
     c.append(encoder_.finish_colours());  // fits: room was checked for n colours
   }
@@ -286,7 +298,8 @@ void StreamSink::fill_client(Client& c) {
 
 bool StreamSink::send_client(Client& c) {
   while (c.end > c.begin) {
-    const ssize_t n = ::send(c.fd.get(), c.out.data() + c.begin, c.end - c.begin, MSG_NOSIGNAL | MSG_DONTWAIT);
+    const ssize_t n =
+        ::send(c.fd.get(), c.out.data() + c.begin, c.end - c.begin, MSG_NOSIGNAL | MSG_DONTWAIT);
     if (n > 0) {
       c.begin += static_cast<std::size_t>(n);
     } else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) {

@@ -44,12 +44,12 @@ struct StreamSinkConfig {
 };
 
 struct StreamSinkStats {
-  std::uint64_t poses = 0;             // poses the sink took from the tracking thread
-  std::uint64_t pose_overruns = 0;     // poses dropped because the sink ring was full
-  std::uint64_t other_overruns = 0;    // reported by note_overrun() (e.g. texture frames skipped)
+  std::uint64_t poses = 0;           // poses the sink took from the tracking thread
+  std::uint64_t pose_overruns = 0;   // poses dropped because the sink ring was full
+  std::uint64_t other_overruns = 0;  // reported by note_overrun() (e.g. texture frames skipped)
   std::uint64_t consoles_accepted = 0;
-  std::uint64_t consoles_refused = 0;  // all slots were taken
-  std::uint64_t dropped_messages = 0;  // over all consoles (latest-wins replacements)
+  std::uint64_t consoles_refused = 0;         // all slots were taken
+  std::uint64_t dropped_messages = 0;         // over all consoles (latest-wins replacements)
   std::uint64_t sink_thread_allocations = 0;  // heap allocations of the sink thread after start()
   int consoles_connected = 0;
 };

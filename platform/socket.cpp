@@ -53,8 +53,8 @@ bool parse_endpoint(std::string_view text, Endpoint* out, std::string* error_out
     text.remove_prefix(5);
     if (text.starts_with("//")) text.remove_prefix(2);
     if (text.empty() || text.size() >= sizeof(sockaddr_un::sun_path)) {
-      *error = "unix endpoint needs a path shorter than " + std::to_string(sizeof(sockaddr_un::sun_path)) +
-               " bytes (unix:/tmp/scopetrack.sock)";
+      *error = "unix endpoint needs a path shorter than " +
+               std::to_string(sizeof(sockaddr_un::sun_path)) + " bytes (unix:/tmp/scopetrack.sock)";
       return false;
     }
     e.path = std::string(text);
@@ -97,7 +97,8 @@ Fd listen_on(const Endpoint& e, int backlog, Endpoint* bound, std::string* error
     struct stat st {};
     if (::lstat(e.path.c_str(), &st) == 0) {
       if (!S_ISSOCK(st.st_mode)) {
-        *error = "cannot listen on " + e.to_string() + ": a file that is not a socket is in the way";
+        *error =
+            "cannot listen on " + e.to_string() + ": a file that is not a socket is in the way";
         return {};
       }
       ::unlink(e.path.c_str());  // a stale socket of an earlier run

@@ -11,9 +11,9 @@ namespace st::platform {
 struct Endpoint {
   enum class Kind { kTcp, kUnix };
   Kind kind = Kind::kTcp;
-  std::string host;  // tcp: IPv4 address or "localhost"
-  int port = 0;      // tcp: 0 = any free port (listen only)
-  std::string path;  // unix: socket file
+  std::string host;               // tcp: IPv4 address or "localhost"
+  int port = 0;                   // tcp: 0 = any free port (listen only)
+  std::string path;               // unix: socket file
   std::string to_string() const;  // "tcp://127.0.0.1:7700" or "unix:/path"
 };
 

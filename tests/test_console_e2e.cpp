@@ -5,7 +5,6 @@
 // at the true pose, organ pixels only, before the Y'CbCr conversion). And a
 // console that connects and never reads does not slow the tracker.
 #include <doctest/doctest.h>
-
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -13,10 +12,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "core/rasterizer.h"
 #include "core/trajectory.h"
@@ -57,7 +55,9 @@ std::vector<std::uint8_t> ply_face_rgb(const std::string& bytes, const Mesh& mes
   REQUIRE(bytes.size() == off + 16 * n);
   std::vector<std::uint8_t> rgb(3 * n);
   for (std::size_t t = 0; t < n; ++t, off += 16)
-    for (int c = 0; c < 3; ++c) rgb[3 * t + static_cast<std::size_t>(c)] = static_cast<std::uint8_t>(bytes[off + 13 + static_cast<std::size_t>(c)]);
+    for (int c = 0; c < 3; ++c)
+      rgb[3 * t + static_cast<std::size_t>(c)] =
+          static_cast<std::uint8_t>(bytes[off + 13 + static_cast<std::size_t>(c)]);
   return rgb;
 }
 
@@ -76,7 +76,8 @@ Reference reference_texture(const Mesh& mesh, const Pinhole& K, const std::vecto
   rc.height = K.height;
   REQUIRE(r.configure(mesh, rc).ok());
   const auto n = static_cast<std::size_t>(mesh.triangle_count());
-  Reference ref{std::vector<double>(3 * n, 0.0), std::vector<std::int64_t>(n, 0), std::vector<int>(n, 0)};
+  Reference ref{std::vector<double>(3 * n, 0.0), std::vector<std::int64_t>(n, 0),
+                std::vector<int>(n, 0)};
   std::vector<int> count(n);
   for (std::size_t f = 0; f < rgb.size(); ++f) {
     r.render(gt[f].T_model_camera.inverse(), K);
@@ -104,8 +105,11 @@ double summary_number(const std::filesystem::path& out, const std::string& key) 
 
 }  // namespace
 
-TEST_CASE("console_e2e: scopetrack streams a simulated sequence; the console gets every pose in order and the "
-          "simulator's texture" * doctest::timeout(test::budget_s(400))) {
+TEST_CASE(
+    "console_e2e: scopetrack streams a simulated sequence; the console gets every pose in order "
+    "and the "
+    "simulator's texture" *
+    doctest::timeout(test::budget_s(400))) {
   const auto dir = test::scratch_dir("console_e2e");
   sim::SimOptions so;
   so.scenario = sim::ScenarioKind::Orbit;
@@ -128,7 +132,8 @@ TEST_CASE("console_e2e: scopetrack streams a simulated sequence; the console get
   cmd += " --stream unix:" + sock + " --stream-wait 1 --texture-every 1 > " + q(dir / "track.log");
   cmd += " 2>&1; echo $? > " + q(dir / "track.code") + ") & ";
   cmd += bin("scopetrack-console") + " unix:" + sock + " --record " + q(dir / "rec");
-  cmd += " --mesh " + q(dir / "seq/organ.ply") + " > " + q(dir / "console.log") + " 2>&1; c=$?; wait; exit $c";
+  cmd += " --mesh " + q(dir / "seq/organ.ply") + " > " + q(dir / "console.log") +
+         " 2>&1; c=$?; wait; exit $c";
   const int console_code = run(cmd);
   const std::string track_log = test::read_file_bytes(dir / "track.log");
   const std::string console_log = test::read_file_bytes(dir / "console.log");
@@ -158,8 +163,10 @@ TEST_CASE("console_e2e: scopetrack streams a simulated sequence; the console get
   // The texture against the simulator's frames.
   auto seq = load_sequence(dir / "seq");
   REQUIRE(seq.ok());
-  const std::vector<std::uint8_t> ply = ply_face_rgb(test::read_file_bytes(dir / "rec/textured_mesh.ply"), seq->mesh);
-  const Reference ref = reference_texture(seq->mesh, seq->config.K, rgb, labels, sim_report->groundtruth);
+  const std::vector<std::uint8_t> ply =
+      ply_face_rgb(test::read_file_bytes(dir / "rec/textured_mesh.ply"), seq->mesh);
+  const Reference ref =
+      reference_texture(seq->mesh, seq->config.K, rgb, labels, sim_report->groundtruth);
   double abs_err = 0;
   std::int64_t compared = 0, coloured = 0, seen3 = 0;
   for (std::size_t t = 0; t < ref.frames.size(); ++t) {
@@ -170,23 +177,26 @@ TEST_CASE("console_e2e: scopetrack streams a simulated sequence; the console get
     if (!has_colour) continue;
     ++compared;
     for (int c = 0; c < 3; ++c) {
-      const double want = ref.sum[3 * t + static_cast<std::size_t>(c)] / static_cast<double>(ref.pixels[t]);
+      const double want =
+          ref.sum[3 * t + static_cast<std::size_t>(c)] / static_cast<double>(ref.pixels[t]);
       abs_err += std::abs(want - ply[3 * t + static_cast<std::size_t>(c)]);
     }
   }
   const double mae = compared ? abs_err / (3.0 * static_cast<double>(compared)) : 1e9;
-  MESSAGE("texture: " << compared << " triangles seen >= 3 times compared (of " << seen3 << "), " << coloured
-                      << " coloured, mean abs error " << mae << " / 255");
+  MESSAGE("texture: " << compared << " triangles seen >= 3 times compared (of " << seen3 << "), "
+                      << coloured << " coloured, mean abs error " << mae << " / 255");
   CHECK(compared >= 0.9 * static_cast<double>(seen3));
   CHECK(compared > 1000);
   CHECK(mae < 20.0);
 }
 
-TEST_CASE("console_e2e: a console that connects and never reads does not slow tracking or grow memory" *
-          doctest::timeout(test::budget_s(300))) {
+TEST_CASE(
+    "console_e2e: a console that connects and never reads does not slow tracking or grow memory" *
+    doctest::timeout(test::budget_s(300))) {
   const auto dir = test::scratch_dir("console_slow");
-  REQUIRE(run(bin("scopetrack-sim") + " --scenario orbit --frames 100 --size 480x270 --seed 3 --out " +
-              q(dir / "seq") + " > /dev/null") == 0);
+  REQUIRE(run(bin("scopetrack-sim") +
+              " --scenario orbit --frames 100 --size 480x270 --seed 3 --out " + q(dir / "seq") +
+              " > /dev/null") == 0);
   // Without a console (the link runs, nobody listens).
   // Default texturing (keyframes).
   const std::string base = bin("scopetrack") + " --sequence " + q(dir / "seq") + " --stream unix:";
@@ -194,7 +204,8 @@ TEST_CASE("console_e2e: a console that connects and never reads does not slow tr
   // With a console that connects and never reads.
   const std::string sock = socket_path("slow");
   std::string slow_cmd = "(";
-  slow_cmd += base + sock + " --stream-wait 1 --out " + q(dir / "slow") + " > " + q(dir / "slow.log");
+  slow_cmd +=
+      base + sock + " --stream-wait 1 --out " + q(dir / "slow") + " > " + q(dir / "slow.log");
   slow_cmd += " 2>&1; echo $? > " + q(dir / "slow.code") + ") &";
   REQUIRE(run(slow_cmd) == 0);
   platform::Endpoint ep;
@@ -207,11 +218,13 @@ TEST_CASE("console_e2e: a console that connects and never reads does not slow tr
     if (!fd.valid()) platform::sleep_until_ns(platform::monotonic_ns() + 50'000'000);
   }
   REQUIRE_MESSAGE(fd.valid(), err);
-  while (!std::filesystem::exists(dir / "slow.code") && platform::monotonic_ns() < deadline + 60'000'000'000ll)
+  while (!std::filesystem::exists(dir / "slow.code") &&
+         platform::monotonic_ns() < deadline + 60'000'000'000ll)
     platform::sleep_until_ns(platform::monotonic_ns() + 50'000'000);
   INFO(test::read_file_bytes(dir / "slow.log"));
   REQUIRE(std::filesystem::exists(dir / "slow.code"));
-  platform::sleep_until_ns(platform::monotonic_ns() + 50'000'000);  // the code file is written before it is closed
+  platform::sleep_until_ns(platform::monotonic_ns() +
+                           50'000'000);  // the code file is written before it is closed
   CHECK(std::atoi(test::read_file_bytes(dir / "slow.code").c_str()) == 0);
 
   const double p99_none = summary_number(dir / "none", "p99_latency_ms");
@@ -219,8 +232,9 @@ TEST_CASE("console_e2e: a console that connects and never reads does not slow tr
   const double rss_none = summary_number(dir / "none", "peak_rss_mb");
   const double rss_slow = summary_number(dir / "slow", "peak_rss_mb");
   const double dropped = summary_number(dir / "slow", "stream_dropped_messages");
-  MESSAGE("p99 latency: no console " << p99_none << " ms, console never reading " << p99_slow << " ms; peak RSS "
-                                     << rss_none << " / " << rss_slow << " MB; messages dropped for it " << dropped);
+  MESSAGE("p99 latency: no console " << p99_none << " ms, console never reading " << p99_slow
+                                     << " ms; peak RSS " << rss_none << " / " << rss_slow
+                                     << " MB; messages dropped for it " << dropped);
   CHECK(summary_number(dir / "slow", "frames") == 100);
   CHECK(summary_number(dir / "slow", "tracking_thread_allocations") == 0);
   CHECK(summary_number(dir / "slow", "stream_consoles_accepted") == 1);
@@ -233,8 +247,9 @@ TEST_CASE("console_e2e: a console that connects and never reads does not slow tr
   CHECK(rss_slow - rss_none < 16.0);
 }
 
-TEST_CASE("console_e2e: scopetrack-console refuses an oversized or garbage stream with a clear error" *
-          doctest::timeout(test::budget_s(60))) {
+TEST_CASE(
+    "console_e2e: scopetrack-console refuses an oversized or garbage stream with a clear error" *
+    doctest::timeout(test::budget_s(60))) {
   const auto dir = test::scratch_dir("console_bad_stream");
   struct Case {
     const char* name;
@@ -243,7 +258,9 @@ TEST_CASE("console_e2e: scopetrack-console refuses an oversized or garbage strea
   };
   const std::vector<Case> cases = {
       {"oversized", {0xff, 0xff, 0xff, 0x7f, 1, 2, 3, 4}, "oversized"},
-      {"garbage", {12, 0, 0, 0, 'n', 'o', 't', ' ', 'a', ' ', 's', 't', 'r', 'e', 'a', 'm'}, "rejected a buffer"},
+      {"garbage",
+       {12, 0, 0, 0, 'n', 'o', 't', ' ', 'a', ' ', 's', 't', 'r', 'e', 'a', 'm'},
+       "rejected a buffer"},
   };
   for (const Case& c : cases) {
     CAPTURE(c.name);
@@ -264,7 +281,8 @@ TEST_CASE("console_e2e: scopetrack-console refuses an oversized or garbage strea
       if (!con.valid()) platform::sleep_until_ns(platform::monotonic_ns() + 10'000'000);
     }
     REQUIRE(con.valid());
-    REQUIRE(::send(con.get(), c.bytes.data(), c.bytes.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(c.bytes.size()));
+    REQUIRE(::send(con.get(), c.bytes.data(), c.bytes.size(), MSG_NOSIGNAL) ==
+            static_cast<ssize_t>(c.bytes.size()));
     con.reset();  // end of stream
     const auto code = dir / (std::string(c.name) + ".code");
     while (!std::filesystem::exists(code) && platform::monotonic_ns() < deadline)
@@ -274,7 +292,8 @@ TEST_CASE("console_e2e: scopetrack-console refuses an oversized or garbage strea
     INFO(out);
     CHECK(out.find(c.expect) != std::string::npos);
     CHECK(out.find("0 poses") != std::string::npos);
-    if (std::string(c.name) == "oversized") CHECK(std::atoi(test::read_file_bytes(code).c_str()) == 1);
+    if (std::string(c.name) == "oversized")
+      CHECK(std::atoi(test::read_file_bytes(code).c_str()) == 1);
     ::unlink(ep.path.c_str());
   }
 }

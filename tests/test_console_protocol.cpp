@@ -33,7 +33,8 @@ PoseSample sample_pose() {
   p.inliers = 311;
   p.quality = 0.75f;
   p.latency_us = 6250;
-  set_pose(&p, SE3(Eigen::AngleAxisd(0.3, Vec3(1, 2, 3).normalized()).toRotationMatrix(), Vec3(10, -20, 130)));
+  set_pose(&p, SE3(Eigen::AngleAxisd(0.3, Vec3(1, 2, 3).normalized()).toRotationMatrix(),
+                   Vec3(10, -20, 130)));
   return p;
 }
 
@@ -86,7 +87,8 @@ TEST_CASE("console_protocol: hello, pose, colours and health survive encode -> v
 
   const std::vector<ColourUpdate> cols = {{3, 10, 20, 30}, {11, 255, 0, 128}};
   auto c = decode_message(copy(enc.colours(cols)));
-  REQUIRE_MESSAGE(c.ok(), c.message());  // decoded from a temporary: read nothing from it but the kind
+  REQUIRE_MESSAGE(c.ok(),
+                  c.message());  // decoded from a temporary: read nothing from it but the kind
   CHECK(c->kind == MessageKind::kColours);
   const Bytes colours = copy(enc.colours(cols));
   auto c2 = decode_message(colours);
@@ -102,13 +104,16 @@ TEST_CASE("console_protocol: hello, pose, colours and health survive encode -> v
   CHECK(hl->health.fps == 29.5f);
 }
 
-TEST_CASE("console_protocol: truncated, oversized, garbage and foreign buffers are rejected with a clear error") {
+TEST_CASE(
+    "console_protocol: truncated, oversized, garbage and foreign buffers are rejected with a clear "
+    "error") {
   StreamEncoder enc;
   const Bytes pose = copy(enc.pose(sample_pose()));
   // Truncated: every shorter prefix of a valid buffer.
   for (std::size_t n = 0; n < pose.size(); ++n) {
     CAPTURE(n);
-    const std::string e = decode_error(Bytes(pose.begin(), pose.begin() + static_cast<std::ptrdiff_t>(n)));
+    const std::string e =
+        decode_error(Bytes(pose.begin(), pose.begin() + static_cast<std::ptrdiff_t>(n)));
     CHECK(e.find("truncated") != std::string::npos);
   }
   // Oversized size prefix.
@@ -146,7 +151,9 @@ TEST_CASE("console_protocol: truncated, oversized, garbage and foreign buffers a
   CHECK_FALSE(decode_error(noise).empty());
 }
 
-TEST_CASE("console_protocol: the framer reassembles buffers split anywhere and refuses an oversized prefix") {
+TEST_CASE(
+    "console_protocol: the framer reassembles buffers split anywhere and refuses an oversized "
+    "prefix") {
   StreamEncoder enc;
   Bytes stream;
   for (int i = 0; i < 5; ++i) {
@@ -186,7 +193,8 @@ TEST_CASE("console_protocol: the framer reassembles buffers split anywhere and r
 TEST_CASE("console_protocol: the encoder allocates nothing after construction") {
   StreamEncoder enc;
   std::vector<ColourUpdate> cols(kMaxColoursPerDelta);
-  for (int i = 0; i < kMaxColoursPerDelta; ++i) cols[static_cast<std::size_t>(i)].triangle = static_cast<std::uint32_t>(i);
+  for (int i = 0; i < kMaxColoursPerDelta; ++i)
+    cols[static_cast<std::size_t>(i)].triangle = static_cast<std::uint32_t>(i);
   const Mesh cube = test::centred_cube(10);
   const StreamHello hello = sample_hello(cube);
   test::AllocationCounter allocs;
@@ -201,7 +209,9 @@ TEST_CASE("console_protocol: the encoder allocates nothing after construction") 
   CHECK(bytes > 100 * 8 * kMaxColoursPerDelta);
 }
 
-TEST_CASE("console_protocol: flatc --json (an independent decoder) reads a captured buffer with the same fields") {
+TEST_CASE(
+    "console_protocol: flatc --json (an independent decoder) reads a captured buffer with the same "
+    "fields") {
   const auto dir = test::scratch_dir("console_flatc");
   StreamEncoder enc;
   const PoseSample p = sample_pose();
@@ -210,10 +220,12 @@ TEST_CASE("console_protocol: flatc --json (an independent decoder) reads a captu
     std::ofstream f(dir / "pose.bin", std::ios::binary);
     f.write(reinterpret_cast<const char*>(pose.data()), static_cast<std::streamsize>(pose.size()));
   }
-  const std::string cmd = std::string(SCOPETRACK_FLATC) + " --json --strict-json --size-prefixed --raw-binary -o '" +
-                          dir.string() + "' '" + SCOPETRACK_STREAM_SCHEMA + "' -- '" + (dir / "pose.bin").string() +
-                          "' 2> '" + (dir / "flatc.err").string() + "'";
-  REQUIRE_MESSAGE(test::run_shell(cmd) == 0, (cmd + "\n" + test::read_file_bytes(dir / "flatc.err")));
+  const std::string cmd =
+      std::string(SCOPETRACK_FLATC) + " --json --strict-json --size-prefixed --raw-binary -o '" +
+      dir.string() + "' '" + SCOPETRACK_STREAM_SCHEMA + "' -- '" + (dir / "pose.bin").string() +
+      "' 2> '" + (dir / "flatc.err").string() + "'";
+  REQUIRE_MESSAGE(test::run_shell(cmd) == 0,
+                  (cmd + "\n" + test::read_file_bytes(dir / "flatc.err")));
   const std::string json = test::read_file_bytes(dir / "pose.json");
   INFO(json);
   CHECK(json.find("\"payload_type\": \"PoseUpdate\"") != std::string::npos);
@@ -229,7 +241,7 @@ TEST_CASE("console_protocol: flatc --json (an independent decoder) reads a captu
     const std::size_t at = json.find(key);
     REQUIRE(at != std::string::npos);
     const double v = std::strtod(json.c_str() + at + std::strlen(key), nullptr);
-    const double want = std::string(key) == "\"tx\": " ? p.t_mm[0]
+    const double want = std::string(key) == "\"tx\": "   ? p.t_mm[0]
                         : std::string(key) == "\"ty\": " ? p.t_mm[1]
                         : std::string(key) == "\"tz\": " ? p.t_mm[2]
                                                          : p.q_xyzw[3];
@@ -246,8 +258,8 @@ TEST_CASE("console_protocol: endpoints parse, bad ones say why") {
   CHECK(e.to_string() == "tcp://127.0.0.1:7700");
   REQUIRE(platform::parse_endpoint("unix:/tmp/st.sock", &e, &err));
   CHECK(e.path == "/tmp/st.sock");
-  for (const char* bad : {"", "tcp://", "tcp://host", "tcp://:7700", "tcp://1.2.3.4:99999", "tcp://1.2.3.4:7x",
-                          "unix:", "udp://1.2.3.4:5", "/tmp/sock"}) {
+  for (const char* bad : {"", "tcp://", "tcp://host", "tcp://:7700", "tcp://1.2.3.4:99999",
+                          "tcp://1.2.3.4:7x", "unix:", "udp://1.2.3.4:5", "/tmp/sock"}) {
     CAPTURE(bad);
     err.clear();
     CHECK_FALSE(platform::parse_endpoint(bad, &e, &err));
@@ -256,14 +268,16 @@ TEST_CASE("console_protocol: endpoints parse, bad ones say why") {
   CHECK_FALSE(platform::parse_endpoint("unix:/" + std::string(200, 'a'), &e, &err));
 }
 
-TEST_CASE("console_protocol: the console session takes bytes: bad buffers rejected, wrong mesh refused") {
+TEST_CASE(
+    "console_protocol: the console session takes bytes: bad buffers rejected, wrong mesh refused") {
   const Mesh cube = test::centred_cube(40);
   StreamEncoder enc;
   console::ConsoleSession session(&cube);
   REQUIRE(session.feed(enc.hello(sample_hello(cube))).ok());
   REQUIRE(session.has_hello());
   REQUIRE(session.feed(enc.pose(sample_pose())).ok());
-  const std::vector<ColourUpdate> cols = {{3, 10, 20, 30}, {99, 1, 2, 3}};  // 99: not a triangle of the cube
+  const std::vector<ColourUpdate> cols = {{3, 10, 20, 30},
+                                          {99, 1, 2, 3}};  // 99: not a triangle of the cube
   REQUIRE(session.feed(enc.colours(cols)).ok());
   CHECK(session.coloured_triangles() == 1);
   CHECK(session.face_rgb()[9] == 10);

@@ -2,7 +2,6 @@
 // TCP sockets, the latest-wins and coalescing policies, a console that never
 // reads, reconnects, a full house.
 #include <doctest/doctest.h>
-
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -34,7 +33,8 @@ struct TestConsole {
   }
   // Reads until done() or the peer closes or timeout_s passes; true if done().
   bool pump(const std::function<bool()>& done, double timeout_s = 5.0) {
-    const std::int64_t deadline = platform::monotonic_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
+    const std::int64_t deadline =
+        platform::monotonic_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
     std::vector<std::uint8_t> buf(64 * 1024);
     while (!done()) {
       if (closed || platform::monotonic_ns() > deadline) return false;
@@ -82,8 +82,10 @@ bool strictly_increasing(const std::vector<PoseSample>& poses) {
 
 }  // namespace
 
-TEST_CASE("console_sink: a console gets the hello, every pose in order, the colours so far, deltas, health" *
-          doctest::timeout(30)) {
+TEST_CASE(
+    "console_sink: a console gets the hello, every pose in order, the colours so far, deltas, "
+    "health" *
+    doctest::timeout(30)) {
   const Mesh cube = test::centred_cube(40);
   StreamSinkConfig cfg;
   REQUIRE(platform::parse_endpoint("unix:" + socket_path("basic"), &cfg.endpoint, nullptr));
@@ -96,10 +98,12 @@ TEST_CASE("console_sink: a console gets the hello, every pose in order, the colo
   TestConsole con(sink.endpoint());
   REQUIRE(sink.wait_for_consoles(1, 5));
   for (std::uint32_t i = 0; i < 500; ++i) REQUIRE(sink.push_pose(pose(i)));
-  REQUIRE(con.pump([&] { return con.session.poses().size() == 500 && con.session.coloured_triangles() == 1; }));
+  REQUIRE(con.pump(
+      [&] { return con.session.poses().size() == 500 && con.session.coloured_triangles() == 1; }));
   const ColourUpdate later[] = {{5, 200, 100, 50}};
   sink.push_colours(later);
-  REQUIRE(con.pump([&] { return con.session.coloured_triangles() == 2 && con.session.health().has_value(); }));
+  REQUIRE(con.pump(
+      [&] { return con.session.coloured_triangles() == 2 && con.session.health().has_value(); }));
   sink.stop();
   con.pump([] { return false; }, 2.0);
   CHECK(con.closed);  // stop() closes the connection
@@ -115,8 +119,10 @@ TEST_CASE("console_sink: a console gets the hello, every pose in order, the colo
   CHECK(sink.stats().sink_thread_allocations == 0);
 }
 
-TEST_CASE("console_sink: a console that never reads costs drops, not time or memory; a reconnect gets a fresh hello" *
-          doctest::timeout(60)) {
+TEST_CASE(
+    "console_sink: a console that never reads costs drops, not time or memory; a reconnect gets a "
+    "fresh hello" *
+    doctest::timeout(60)) {
   const Mesh cube = test::centred_cube(40);
   StreamSinkConfig cfg;
   REQUIRE(platform::parse_endpoint("unix:" + socket_path("slow"), &cfg.endpoint, nullptr));
@@ -137,23 +143,28 @@ TEST_CASE("console_sink: a console that never reads costs drops, not time or mem
     sink.push_pose(p);
     worst_push_ns = std::max(worst_push_ns, platform::monotonic_ns() - t0);
     push_allocations += allocs.count();
-    if (i % 200 == 199) platform::sleep_until_ns(platform::monotonic_ns() + 200'000);  // ~1000 frames/s
+    if (i % 200 == 199)
+      platform::sleep_until_ns(platform::monotonic_ns() + 200'000);  // ~1000 frames/s
   }
   CHECK(push_allocations == 0);  // the tracking thread's side allocates nothing
   MESSAGE("worst push_pose: " << worst_push_ns * 1e-3 << " us");
-  CHECK(worst_push_ns < 5'000'000);  // a lock or a send() would show as ms (generous: shared machine)
+  CHECK(worst_push_ns <
+        5'000'000);  // a lock or a send() would show as ms (generous: shared machine)
   // Measured before the test's reader keeps anything: the sink's buffers
   // are fixed, nothing grows with the backlog.
   const double rss1 = platform::current_rss_mb();
   // The second console reads only now: the poses it gets are in order, with
   // gaps (its buffer was full too), and the newest pose is among them.
-  REQUIRE(reader.pump([&] { return !reader.session.poses().empty() && reader.session.poses().back().frame == kPoses - 1; }));
+  REQUIRE(reader.pump([&] {
+    return !reader.session.poses().empty() && reader.session.poses().back().frame == kPoses - 1;
+  }));
   CHECK(strictly_increasing(reader.session.poses()));
   const StreamSinkStats st1 = sink.stats();
   CHECK(st1.dropped_messages > 0);
   CHECK(st1.poses + st1.pose_overruns == kPoses);
-  MESSAGE("RSS " << rss0 << " -> " << rss1 << " MB, dropped " << st1.dropped_messages << ", ring overruns "
-                 << st1.pose_overruns << ", the reader got " << reader.session.poses().size() << " poses");
+  MESSAGE("RSS " << rss0 << " -> " << rss1 << " MB, dropped " << st1.dropped_messages
+                 << ", ring overruns " << st1.pose_overruns << ", the reader got "
+                 << reader.session.poses().size() << " poses");
   CHECK(rss1 - rss0 < 2.0);
 
   // The slow console leaves; a new one connects and starts with a hello.
@@ -162,7 +173,9 @@ TEST_CASE("console_sink: a console that never reads costs drops, not time or mem
   TestConsole again(sink.endpoint());
   REQUIRE(sink.wait_for_consoles(2, 5));
   for (std::uint32_t i = kPoses; i < kPoses + 10; ++i) sink.push_pose(pose(i));
-  REQUIRE(again.pump([&] { return !again.session.poses().empty() && again.session.poses().back().frame == kPoses + 9; }));
+  REQUIRE(again.pump([&] {
+    return !again.session.poses().empty() && again.session.poses().back().frame == kPoses + 9;
+  }));
   CHECK(again.session.hellos() == 1);
   CHECK(again.session.poses().front().frame >= kPoses);
   CHECK(again.session.out_of_order_poses() == 0);
@@ -172,8 +185,9 @@ TEST_CASE("console_sink: a console that never reads costs drops, not time or mem
   CHECK(sink.stats().sink_thread_allocations == 0);
 }
 
-TEST_CASE("console_sink: TCP on a free port, several consoles at once, one over max_clients is refused" *
-          doctest::timeout(30)) {
+TEST_CASE(
+    "console_sink: TCP on a free port, several consoles at once, one over max_clients is refused" *
+    doctest::timeout(30)) {
   const Mesh cube = test::centred_cube(40);
   StreamSinkConfig cfg;
   REQUIRE(platform::parse_endpoint("tcp://127.0.0.1:0", &cfg.endpoint, nullptr));

@@ -20,11 +20,12 @@ const Pinhole kK{300, 300, 159.5, 119.5, kW, kH};
 
 using Rgb = std::array<int, 3>;
 // Face f of centred_cube owns triangles 2f and 2f + 1.
-const std::array<Rgb, 6> kFaceRgb = {{{200, 40, 30}, {60, 180, 90}, {40, 70, 210}, {220, 200, 60}, {150, 60, 170},
-                                      {90, 200, 200}}};
+const std::array<Rgb, 6> kFaceRgb = {
+    {{200, 40, 30}, {60, 180, 90}, {40, 70, 210}, {220, 200, 60}, {150, 60, 170}, {90, 200, 200}}};
 
 SE3 cube_pose() {
-  const Mat3 R = (Eigen::AngleAxisd(0.5, Vec3::UnitX()) * Eigen::AngleAxisd(-0.6, Vec3::UnitY())).toRotationMatrix();
+  const Mat3 R = (Eigen::AngleAxisd(0.5, Vec3::UnitX()) * Eigen::AngleAxisd(-0.6, Vec3::UnitY()))
+                     .toRotationMatrix();
   return SE3(R, Vec3(0, 0, 160));
 }
 
@@ -66,7 +67,8 @@ Frame paint(const Mesh& cube, const SE3& T, const std::array<Rgb, 6>& face_rgb, 
         const int x = 2 * bx + (k & 1), y = 2 * by + (k >> 1);
         const std::int32_t t = r.triangle_id()(x, y);
         double ycc[3];
-        rgb_to_ycc(t < 0 ? Rgb{0, 0, 0} : face_rgb[static_cast<std::size_t>(t / 2)], full_range, ycc);
+        rgb_to_ycc(t < 0 ? Rgb{0, 0, 0} : face_rgb[static_cast<std::size_t>(t / 2)], full_range,
+                   ycc);
         f.y(x, y) = static_cast<std::uint8_t>(std::lround(ycc[0]));
         cb += ycc[1] / 4;
         cr += ycc[2] / 4;
@@ -87,7 +89,8 @@ TextureConfig config(bool full_range) {
 
 // Facing the camera: the normal points against the ray to the centroid.
 bool facing(const Mesh& m, int t, const SE3& T) {
-  const Vec3 a = T * m.vertex(m.tri[3 * t]), b = T * m.vertex(m.tri[3 * t + 1]), c = T * m.vertex(m.tri[3 * t + 2]);
+  const Vec3 a = T * m.vertex(m.tri[3 * t]), b = T * m.vertex(m.tri[3 * t + 1]),
+             c = T * m.vertex(m.tri[3 * t + 2]);
   return (b - a).cross(c - a).dot((a + b + c) / 3) < 0;
 }
 
@@ -95,7 +98,8 @@ bool facing(const Mesh& m, int t, const SE3& T) {
 
 TEST_CASE("texture: BT.601 Y'CbCr -> RGB, full and studio range, known colours") {
   std::uint8_t rgb[3];
-  yuv_to_rgb(76, 85, 255, true, rgb);  // full-range red (the simulator's RGB -> C420jpeg of 255,0,0)
+  yuv_to_rgb(76, 85, 255, true,
+             rgb);  // full-range red (the simulator's RGB -> C420jpeg of 255,0,0)
   CHECK(rgb[0] >= 253);
   CHECK(rgb[1] <= 2);
   CHECK(rgb[2] <= 2);
@@ -142,7 +146,9 @@ TEST_CASE("texture: visible front faces get their colour, back faces none, in bo
   }
 }
 
-TEST_CASE("texture: running weighted mean with the weight capped at 10 keeps adapting; no allocation per frame") {
+TEST_CASE(
+    "texture: running weighted mean with the weight capped at 10 keeps adapting; no allocation per "
+    "frame") {
   const Mesh cube = test::centred_cube(40);
   const SE3 T = cube_pose();
   MeshTexture tex;

@@ -39,7 +39,8 @@ Row time_texture(const Mesh& liver, const SE3& T, int downscale, int n) {
   }
   int coloured = 0;
   for (int t = 0; t < tex.triangle_count(); ++t) coloured += tex.weight(t) > 0 ? 1 : 0;
-  row.note = std::to_string(coloured) + " triangles coloured, " + std::to_string(changed) + " changed in the last frame";
+  row.note = std::to_string(coloured) + " triangles coloured, " + std::to_string(changed) +
+             " changed in the last frame";
   return row;
 }
 
@@ -49,7 +50,8 @@ Row time_push_pose(const Mesh& liver, int n) {
   StreamSink sink;
   StreamSinkConfig cfg;
   cfg.endpoint.kind = platform::Endpoint::Kind::kUnix;
-  cfg.endpoint.path = "/tmp/scopetrack-bench-" + std::to_string(static_cast<long>(now_ms())) + ".sock";
+  cfg.endpoint.path =
+      "/tmp/scopetrack-bench-" + std::to_string(static_cast<long>(now_ms())) + ".sock";
   StreamHello hello;
   hello.mesh_triangle_count = static_cast<std::uint32_t>(liver.triangle_count());
   if (!sink.configure(cfg, hello).ok()) return row;
@@ -65,7 +67,8 @@ Row time_push_pose(const Mesh& liver, int n) {
     }
   }
   sink.stop(0.1);
-  row.note = "SPSC copy + eventfd poke; sink thread took " + std::to_string(sink.stats().poses) + " poses";
+  row.note =
+      "SPSC copy + eventfd poke; sink thread took " + std::to_string(sink.stats().poses) + " poses";
   return row;
 }
 
@@ -84,6 +87,7 @@ int run(const Options& opt) {
 
 }  // namespace
 
-SCOPETRACK_BENCH_STAGE("link", "console link: texturing one frame, the tracking thread's push_pose", run);
+SCOPETRACK_BENCH_STAGE("link", "console link: texturing one frame, the tracking thread's push_pose",
+                       run);
 
 }  // namespace st::bench

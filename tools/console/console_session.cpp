@@ -50,14 +50,16 @@ Status ConsoleSession::handle(const DecodedMessage& m) {
     case MessageKind::kHello: {
       const StreamHello& h = m.hello;
       if (h.protocol_version != kStreamProtocolVersion)
-        return make_error("protocol version " + std::to_string(h.protocol_version) + ", this console speaks " +
-                          std::to_string(kStreamProtocolVersion));
+        return make_error("protocol version " + std::to_string(h.protocol_version) +
+                          ", this console speaks " + std::to_string(kStreamProtocolVersion));
       if (mesh_ && (h.mesh_triangle_count != static_cast<std::uint32_t>(mesh_->triangle_count()) ||
                     h.mesh_checksum != mesh_checksum(*mesh_)))
         return make_error("the tracker's mesh (" + std::to_string(h.mesh_triangle_count) +
                           " triangles) is not the mesh given with --mesh (" +
-                          std::to_string(mesh_->triangle_count()) + " triangles, or another checksum)");
-      if (h.mesh_triangle_count > kMaxMeshTriangles) return make_error("hello: mesh triangle count out of range");
+                          std::to_string(mesh_->triangle_count()) +
+                          " triangles, or another checksum)");
+      if (h.mesh_triangle_count > kMaxMeshTriangles)
+        return make_error("hello: mesh triangle count out of range");
       if (!hello_ || hello_->mesh_triangle_count != h.mesh_triangle_count) {
         face_rgb_.assign(3 * static_cast<std::size_t>(h.mesh_triangle_count), 128);
         has_colour_.assign(h.mesh_triangle_count, 0);
@@ -103,9 +105,11 @@ std::string ConsoleSession::status_line() const {
   }
   const PoseSample& p = poses_.back();
   const HealthSample h = health_.value_or(HealthSample{});
-  std::snprintf(buf, sizeof(buf), "frame %6u %-11s fps %5.1f  latency %6.2f ms  drops %u  overruns %u  colours %d/%u",
-                p.frame, to_string(p.state), static_cast<double>(h.fps), p.latency_us * 1e-3, h.dropped_messages,
-                h.overruns, coloured_count_, hello_ ? hello_->mesh_triangle_count : 0u);
+  std::snprintf(buf, sizeof(buf),
+                "frame %6u %-11s fps %5.1f  latency %6.2f ms  drops %u  overruns %u  colours %d/%u",
+                p.frame, to_string(p.state), static_cast<double>(h.fps), p.latency_us * 1e-3,
+                h.dropped_messages, h.overruns, coloured_count_,
+                hello_ ? hello_->mesh_triangle_count : 0u);
   return buf;
 }
 
@@ -119,7 +123,8 @@ Status ConsoleSession::write_record(const std::filesystem::path& dir) const {
     tum += format_tum_line({static_cast<double>(p.timestamp_ns) * 1e-9, T_model_camera(p)});
   }
   if (Status s = write_file(dir / "trajectory.txt", tum); !s) return s;
-  if (mesh_ && !face_rgb_.empty()) return save_mesh_ply(dir / "textured_mesh.ply", *mesh_, face_rgb_.data());
+  if (mesh_ && !face_rgb_.empty())
+    return save_mesh_ply(dir / "textured_mesh.ply", *mesh_, face_rgb_.data());
   return Status::Ok();
 }
 

@@ -53,13 +53,15 @@ bool parse(int argc, char** argv, Args* a) {
 
 // Retries until the tracker listens (it may still be loading) or the timeout.
 st::platform::Fd connect_retrying(const st::platform::Endpoint& ep, double timeout_s) {
-  const std::int64_t deadline = st::platform::monotonic_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
+  const std::int64_t deadline =
+      st::platform::monotonic_ns() + static_cast<std::int64_t>(timeout_s * 1e9);
   std::string error;
   for (;;) {
     st::platform::Fd fd = st::platform::connect_to(ep, &error);
     if (fd.valid() || g_stop) return fd;
     if (st::platform::monotonic_ns() > deadline) {
-      std::fprintf(stderr, "scopetrack-console: %s (gave up after %.0f s)\n", error.c_str(), timeout_s);
+      std::fprintf(stderr, "scopetrack-console: %s (gave up after %.0f s)\n", error.c_str(),
+                   timeout_s);
       return fd;
     }
     st::platform::sleep_until_ns(st::platform::monotonic_ns() + 50'000'000);
@@ -91,7 +93,8 @@ int receive(int fd, st::console::ConsoleSession& session, bool live) {
     }
     if (session.rejected() > rejected_shown) {
       rejected_shown = session.rejected();
-      std::fprintf(stderr, "\nscopetrack-console: rejected a buffer: %s\n", session.last_error().c_str());
+      std::fprintf(stderr, "\nscopetrack-console: rejected a buffer: %s\n",
+                   session.last_error().c_str());
     }
     if (live && st::platform::monotonic_ns() >= next_status_ns) {
       std::fprintf(stderr, "\r%s\033[K", session.status_line().c_str());
@@ -105,8 +108,9 @@ int receive(int fd, st::console::ConsoleSession& session, bool live) {
 int main(int argc, char** argv) {
   Args args;
   if (!parse(argc, argv, &args)) {
-    std::fprintf(stderr, "usage: scopetrack-console tcp://HOST:PORT|unix:PATH [--record DIR] [--mesh FILE]"
-                         " [--connect-timeout S]\n");
+    std::fprintf(stderr,
+                 "usage: scopetrack-console tcp://HOST:PORT|unix:PATH [--record DIR] [--mesh FILE]"
+                 " [--connect-timeout S]\n");
     return 2;
   }
   st::platform::Endpoint ep;
@@ -131,9 +135,10 @@ int main(int argc, char** argv) {
   st::console::ConsoleSession session(args.mesh.empty() ? nullptr : &mesh);
   const int code = receive(fd.get(), session, ::isatty(STDERR_FILENO) == 1);
   std::fprintf(stderr, "\n");
-  std::printf("%zu poses (%d out of order), %d hello(s), %d triangles coloured, %lld buffers rejected\n",
-              session.poses().size(), session.out_of_order_poses(), session.hellos(), session.coloured_triangles(),
-              static_cast<long long>(session.rejected()));
+  std::printf(
+      "%zu poses (%d out of order), %d hello(s), %d triangles coloured, %lld buffers rejected\n",
+      session.poses().size(), session.out_of_order_poses(), session.hellos(),
+      session.coloured_triangles(), static_cast<long long>(session.rejected()));
   if (!args.record.empty()) {
     if (st::Status s = session.write_record(args.record); !s) {
       std::fprintf(stderr, "scopetrack-console: %s\n", s.message().c_str());
