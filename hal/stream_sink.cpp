@@ -135,12 +135,14 @@ bool StreamSink::wait_for_consoles(int n, double timeout_s) const {
 }
 
 void StreamSink::stop(double flush_timeout_s) {
-  if (!thread_.joinable()) return;
-  flush_timeout_s_ = flush_timeout_s;
-  running_ = false;
-  const std::uint64_t one = 1;
-  [[maybe_unused]] const ssize_t n = ::write(wake_fd_.get(), &one, sizeof(one));
-  thread_.join();
+  if (thread_.joinable()) {
+    flush_timeout_s_ = flush_timeout_s;
+    running_ = false;
+    const std::uint64_t one = 1;
+    [[maybe_unused]] const ssize_t n = ::write(wake_fd_.get(), &one, sizeof(one));
+    thread_.join();
+  }
+  // Also when configured but never started: no socket file is left behind.
   if (bound_.kind == platform::Endpoint::Kind::kUnix && listen_fd_.valid())
     ::unlink(bound_.path.c_str());
   listen_fd_.reset();

@@ -76,7 +76,8 @@ class StreamSink {
   // Owner: waits until at least n consoles are connected or timeout_s passes.
   bool wait_for_consoles(int n, double timeout_s) const;
   // Owner: sends what is queued to consoles that read (up to flush_timeout_s),
-  // closes every connection and the listening socket, joins the thread.
+  // closes every connection and the listening socket (a Unix socket's file
+  // is removed), joins the thread. Idempotent; the destructor calls it.
   void stop(double flush_timeout_s = 2.0);
   StreamSinkStats stats() const;
 

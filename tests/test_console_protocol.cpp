@@ -235,6 +235,33 @@ TEST_CASE(
   CHECK(json.find("\"timestamp_ns\": 1400000000") != std::string::npos);
   CHECK(json.find("\"latency_us\": 6250") != std::string::npos);
   CHECK(json.find("\"quality\": 0.75") != std::string::npos);
+  // The hello and a colour delta through the same decoder.
+  const Mesh cube = test::centred_cube(40);
+  const std::vector<ColourUpdate> cols = {{3, 10, 20, 30}, {11, 255, 0, 128}};
+  for (const auto& [name, bytes] : {std::pair{"hello", copy(enc.hello(sample_hello(cube)))},
+                                    std::pair{"colours", copy(enc.colours(cols))}}) {
+    std::ofstream f(dir / (std::string(name) + ".bin"), std::ios::binary);
+    f.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
+  }
+  std::string cmd2 = std::string(SCOPETRACK_FLATC) + " --json --strict-json --size-prefixed -o ";
+  cmd2 += test::shell_quoted(dir) + " " + test::shell_quoted(SCOPETRACK_STREAM_SCHEMA) + " -- ";
+  cmd2 += test::shell_quoted(dir / "hello.bin") + " " + test::shell_quoted(dir / "colours.bin");
+  REQUIRE_MESSAGE(test::run_shell(cmd2) == 0, cmd2);
+  const std::string hello_json = test::read_file_bytes(dir / "hello.json");
+  INFO(hello_json);
+  CHECK(hello_json.find("\"payload_type\": \"Hello\"") != std::string::npos);
+  CHECK(hello_json.find("\"protocol_version\": 1") != std::string::npos);
+  CHECK(hello_json.find("\"mesh_triangle_count\": 12") != std::string::npos);
+  CHECK(hello_json.find("\"mesh_checksum\": " + std::to_string(mesh_checksum(cube))) !=
+        std::string::npos);
+  CHECK(hello_json.find("\"image_width\": 480") != std::string::npos);
+  CHECK(hello_json.find("\"fy\": 401") != std::string::npos);
+  const std::string colours_json = test::read_file_bytes(dir / "colours.json");
+  INFO(colours_json);
+  CHECK(colours_json.find("\"payload_type\": \"ColourDelta\"") != std::string::npos);
+  CHECK(colours_json.find("\"triangle\": 11") != std::string::npos);
+  CHECK(colours_json.find("\"r\": 255") != std::string::npos);
   // Translation: flatc prints doubles its own way; compare the numbers.
   for (const char* key : {"\"tx\": ", "\"ty\": ", "\"tz\": ", "\"qw\": "}) {
     CAPTURE(key);
