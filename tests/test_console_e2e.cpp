@@ -200,7 +200,9 @@ TEST_CASE(
   // Without a console (the link runs, nobody listens).
   // Default texturing (keyframes).
   const std::string base = bin("scopetrack") + " --sequence " + q(dir / "seq") + " --stream unix:";
-  REQUIRE(run(base + socket_path("none") + " --out " + q(dir / "none") + " > /dev/null 2>&1") == 0);
+  // Twice: the larger p99 of the two is the noise floor of this machine.
+  for (const char* out : {"none", "none2"})
+    REQUIRE(run(base + socket_path(out) + " --out " + q(dir / out) + " > /dev/null 2>&1") == 0);
   // With a console that connects and never reads.
   const std::string sock = socket_path("slow");
   std::string slow_cmd = "(";
@@ -227,7 +229,8 @@ TEST_CASE(
                            50'000'000);  // the code file is written before it is closed
   CHECK(std::atoi(test::read_file_bytes(dir / "slow.code").c_str()) == 0);
 
-  const double p99_none = summary_number(dir / "none", "p99_latency_ms");
+  const double p99_none = std::max(summary_number(dir / "none", "p99_latency_ms"),
+                                   summary_number(dir / "none2", "p99_latency_ms"));
   const double p99_slow = summary_number(dir / "slow", "p99_latency_ms");
   const double rss_none = summary_number(dir / "none", "peak_rss_mb");
   const double rss_slow = summary_number(dir / "slow", "peak_rss_mb");
