@@ -19,7 +19,7 @@ int run_help(st::app::Args);
 constexpr std::array kCommands = {
     st::app::Command{"--check", "DIR", "validate a sequence folder and say whether it is usable",
                      st::app::run_check},
-    st::app::Command{"--sequence", "DIR --out DIR [--realtime] [--no-mask] [--ring N]",
+    st::app::Command{"--sequence", "DIR --out DIR [--realtime] [--no-mask] [--ring N] [--stream EP]",
                      "replay a sequence through the tracker: trajectory.txt, frames.csv, summary.json in --out",
                      st::app::run_replay},
     st::app::Command{"--version", "", "print the version", run_version},

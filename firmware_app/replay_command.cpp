@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "firmware_app/cli.h"
+#include "firmware_app/stream_link.h"
 #include "firmware_app/tracker_processor.h"
 #include "hal/replay.h"
 #include "hal/sequence_loader.h"
@@ -24,6 +25,9 @@ struct ReplayArgs {
   bool realtime = false;
   bool use_mask = true;
   int ring_slots = 6;
+  std::string stream;           // --stream ENDPOINT: serve consoles (firmware_app/stream_link.h)
+  int stream_wait = 0;          // --stream-wait N: start once N consoles are connected
+  int texture_every = 0;        // --texture-every K: 0 keyframes, k every k-th frame with a pose
 };
 
 // args: DIR then options. False (with a message) on anything it does not understand.
@@ -41,6 +45,12 @@ bool parse_args(Args args, ReplayArgs* a) {
       a->use_mask = false;
     } else if (!std::strcmp(arg, "--ring") && has_value) {
       a->ring_slots = std::atoi(args[static_cast<std::size_t>(++i)]);
+    } else if (!std::strcmp(arg, "--stream") && has_value) {
+      a->stream = args[static_cast<std::size_t>(++i)];
+    } else if (!std::strcmp(arg, "--stream-wait") && has_value) {
+      a->stream_wait = std::atoi(args[static_cast<std::size_t>(++i)]);
+    } else if (!std::strcmp(arg, "--texture-every") && has_value) {
+      a->texture_every = std::atoi(args[static_cast<std::size_t>(++i)]);
     } else {
       std::fprintf(stderr, "scopetrack: unknown or incomplete argument '%s'\n", arg);
       return false;
@@ -69,12 +79,37 @@ void print_result(const ReplayStats& s, const std::string& out_dir) {
               s.peak_rss_mb, static_cast<long long>(s.tracking_thread_allocations), out_dir.c_str());
 }
 
+// The console link (--stream): listening before the first frame; nullptr
+// (with a message) when it cannot be had.
+std::unique_ptr<StreamLink> start_stream_link(const ReplayArgs& a, const LoadedSequence& seq) {
+  StreamLinkConfig lc;
+  std::string error;
+  if (!platform::parse_endpoint(a.stream, &lc.endpoint, &error)) {
+    std::fprintf(stderr, "scopetrack: --stream: %s\n", error.c_str());
+    return nullptr;
+  }
+  lc.wait_consoles = a.stream_wait;
+  lc.texture_every = a.texture_every;
+  auto link = std::make_unique<StreamLink>();
+  Status s = link->configure(lc, seq);
+  if (s) {
+    std::fprintf(stderr, "scopetrack: streaming to consoles on %s\n", link->endpoint().to_string().c_str());
+    s = link->start();
+  }
+  if (!s) {
+    std::fprintf(stderr, "scopetrack: console link: %s\n", s.message().c_str());
+    return nullptr;
+  }
+  return link;
+}
+
 }  // namespace
 
 int run_replay(Args argv) {
   ReplayArgs args;
   if (!parse_args(argv, &args)) {
-    std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--ring N]\n");
+    std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--ring N]\n"
+                 "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
     return 2;
   }
   auto seq = load_sequence(args.sequence);
@@ -96,7 +131,13 @@ int run_replay(Args argv) {
                  s.message().c_str());
     return 1;
   }
+  std::unique_ptr<StreamLink> link;
+  if (!args.stream.empty()) {
+    link = start_stream_link(args, seq.value());
+    if (!link) return 1;
+  }
   ReplayOptions opt;
+  opt.observer = link.get();
   opt.out_dir = args.out;
   opt.realtime = args.realtime;
   opt.progress = ::isatty(STDERR_FILENO) == 1;

@@ -45,6 +45,7 @@ struct TrackingLoop {
   FrameCapture* capture = nullptr;
   RunWriter* writer = nullptr;
   FrameProcessor* processor = nullptr;
+  FrameObserver* observer = nullptr;
   double fps = 0;
   bool realtime = false;
   LatencyHistogram latency;
@@ -64,12 +65,14 @@ struct TrackingLoop {
       }
       const TrackResult r = processor->step(in.frame.y, in.frame.index);
       const std::int64_t t_done_ns = platform::monotonic_ns();
-      capture->release();
       // As fast as possible, the capture runs ahead on purpose: a frame's
       // latency starts when the tracker could take it, not when it was queued.
       const std::int64_t t_from_ns = realtime ? in.t_handoff_ns : std::max(in.t_handoff_ns, t_prev_done_ns);
       t_prev_done_ns = t_done_ns;
-      record(in.frame.index, r, static_cast<double>(t_done_ns - t_from_ns) * 1e-6);
+      const double latency_ms = static_cast<double>(t_done_ns - t_from_ns) * 1e-6;
+      if (observer) observer->frame_done(in.frame, r, latency_ms);  // the frame is valid until release()
+      capture->release();
+      record(in.frame.index, r, latency_ms);
     }
   }
 
@@ -154,6 +157,7 @@ Result<ReplayStats> run_replay(const LoadedSequence& sequence, FrameProcessor& p
   loop->capture = capture.get();
   loop->writer = writer.get();
   loop->processor = &processor;
+  loop->observer = options.observer;
   loop->fps = sequence.config.fps;
   loop->realtime = options.realtime;
   writer->start({options.progress, estimate_frame_count(sequence), 0.25});
@@ -170,6 +174,7 @@ Result<ReplayStats> run_replay(const LoadedSequence& sequence, FrameProcessor& p
 
   ReplayOptions summary_options = options;
   processor.append_summary(&summary_options.summary_extra);
+  if (options.observer) options.observer->finish(&summary_options.summary_extra);
   ReplayStats& stats = loop->stats;
   stats.tracking_thread_allocations = static_cast<std::int64_t>(allocs);
   if (loop->read_error) stats.error = capture->error();

@@ -23,6 +23,7 @@
 #include "core/result.h"
 #include "core/tracker.h"
 #include "hal/sequence_loader.h"
+#include "hal/y4m_reader.h"
 
 namespace st {
 
@@ -39,11 +40,25 @@ class FrameProcessor {
   virtual void append_summary(std::vector<std::pair<std::string, double>>* fields) const { (void)fields; }
 };
 
+// Sees every frame on the tracking thread right after the processor, while
+// the frame's pixels are still valid (the console link: a POD pose into a
+// queue, a frame copy for texturing). Must not allocate, block or log.
+class FrameObserver {
+ public:
+  virtual ~FrameObserver() = default;
+  virtual void frame_done(const FrameRef& frame, const TrackResult& result, double latency_ms) = 0;
+  // After the last frame, on the calling thread, before summary.json is
+  // written: finish the observer's work (may wait, may allocate) and add
+  // numeric fields to the summary.
+  virtual void finish(std::vector<std::pair<std::string, double>>* summary_fields) { (void)summary_fields; }
+};
+
 struct ReplayOptions {
   std::filesystem::path out_dir;
   bool realtime = false;   // pace frames to the sequence's fps; else as fast as possible
   bool progress = false;   // progress line on stderr (the caller checks isatty)
   int ring_slots = 6;      // capture ring: frames queued or in use at once
+  FrameObserver* observer = nullptr;  // optional, called on the tracking thread
   // More numeric fields for summary.json (configuration, for the record).
   std::vector<std::pair<std::string, double>> summary_extra;
 };
