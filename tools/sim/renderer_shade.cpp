@@ -14,7 +14,7 @@ constexpr float kAmbient = 0.05f;  // inter-reflections: shadowed tissue is not 
 
 }  // namespace
 
-void SceneRenderer::render_subframe(const WorldState& state, float weight, bool keep_labels) {
+void SceneRenderer::render_subframe(const WorldState& state, float weight, bool first, bool keep_labels) {
   const SE3 T_camera_world = state.T_world_camera.inverse();
   organ_raster_.render(T_camera_world * state.T_world_model, K_ideal_);
   background_raster_.render(T_camera_world, K_ideal_);
@@ -43,7 +43,7 @@ void SceneRenderer::render_subframe(const WorldState& state, float weight, bool 
   const double d_ref = 90.0 * std::pow(std::max(d_organ, 20.0) / 90.0, 0.85);
   const auto irradiance = static_cast<float>(settings_.exposure * d_ref * d_ref);
   shade_background_half(T_mesh_camera[1], irradiance);
-  shade_rows(T_mesh_camera, irradiance, weight, keep_labels);
+  shade_rows(T_mesh_camera, irradiance, weight, first, keep_labels);
 }
 
 void SceneRenderer::shade_background_half(const Xf& T_world_camera, float irradiance) {
@@ -68,62 +68,69 @@ void SceneRenderer::shade_background_half(const Xf& T_world_camera, float irradi
   }
 }
 
-cv::Vec3f SceneRenderer::background_at(int x, int y) const {
-  // Half-resolution pixel centres: x_half = (x + 0.5) / 2 - 0.5.
-  const float hx = std::max(0.0f, 0.5f * static_cast<float>(x) - 0.25f);
+SceneRenderer::BackgroundRow SceneRenderer::background_row(int y) const {
+  // Half-resolution pixel centres: y_half = (y + 0.5) / 2 - 0.5.
   const float hy = std::max(0.0f, 0.5f * static_cast<float>(y) - 0.25f);
-  const int x0 = std::min(static_cast<int>(hx), background_half_.cols - 1);
   const int y0 = std::min(static_cast<int>(hy), background_half_.rows - 1);
-  const int x1 = std::min(x0 + 1, background_half_.cols - 1), y1 = std::min(y0 + 1, background_half_.rows - 1);
-  const float fx = hx - static_cast<float>(x0), fy = hy - static_cast<float>(y0);
-  const auto* r0 = background_half_.ptr<cv::Vec3f>(y0);
-  const auto* r1 = background_half_.ptr<cv::Vec3f>(y1);
-  return (r0[x0] * (1 - fx) + r0[x1] * fx) * (1 - fy) + (r1[x0] * (1 - fx) + r1[x1] * fx) * fy;
+  const int y1 = std::min(y0 + 1, background_half_.rows - 1);
+  return {background_half_.ptr<cv::Vec3f>(y0), background_half_.ptr<cv::Vec3f>(y1), hy - static_cast<float>(y0)};
 }
 
-void SceneRenderer::shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight,
+cv::Vec3f SceneRenderer::background_at(const BackgroundRow& r, int x) const {
+  const BackgroundTap& t = background_taps_[static_cast<std::size_t>(x)];
+  const float fx = t.fx, fy = r.fy;
+  return (r.r0[t.x0] * (1 - fx) + r.r0[t.x1] * fx) * (1 - fy) + (r.r1[t.x0] * (1 - fx) + r.r1[t.x1] * fx) * fy;
+}
+
+// Per row: row pointers into the three rasters (the background's is half
+// size), the nearest surface per pixel, then its radiance. The first
+// sub-frame writes the accumulator (no clearing pass), later ones add.
+void SceneRenderer::shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight, bool first,
                                bool keep_labels) {
-  const MeshRasterizer* rasters[3] = {&organ_raster_, &background_raster_, &instrument_raster_};
-  const ShadeMesh* meshes[3] = {&organ_, &background_, &instrument_};
+  const ImageView<const float> depth[3] = {organ_raster_.depth(), background_raster_.depth(),
+                                           instrument_raster_.depth()};
+  const ImageView<const std::int32_t> ids[3] = {organ_raster_.triangle_id(), background_raster_.triangle_id(),
+                                                instrument_raster_.triangle_id()};
   const std::uint8_t label_of[3] = {kLabelOrgan, kLabelBackground, kLabelInstrument};
-  ImageView<const float> depth[3];
-  ImageView<const std::int32_t> ids[3];
-  for (int m = 0; m < 3; ++m) {
-    depth[m] = rasters[m]->depth();
-    ids[m] = rasters[m]->triangle_id();
-  }
   const auto inv_fx = static_cast<float>(1.0 / K_ideal_.fx), inv_fy = static_cast<float>(1.0 / K_ideal_.fy);
+  const int half_w = depth[1].width;
   for (int y = 0; y < K_ideal_.height; ++y) {
     const float ray_y = static_cast<float>(y - K_ideal_.cy) * inv_fy;
     auto* acc = accum_.ptr<cv::Vec3f>(y);
     std::uint8_t* lab = labels_ideal_.ptr<std::uint8_t>(y);
+    const int hy = std::min(y >> 1, depth[1].height - 1);
+    const float* d_row[3] = {depth[0].row(y), depth[1].row(hy), depth[2].row(y)};
+    const std::int32_t* id_row[3] = {ids[0].row(y), ids[1].row(hy), ids[2].row(y)};
+    const BackgroundRow bg = background_row(y);
     for (int x = 0; x < K_ideal_.width; ++x) {
+      const int rx[3] = {x, std::min(x >> 1, half_w - 1), x};
       int best = -1;
       float z = 0.0f;
       for (int m = 0; m < 3; ++m) {
-        // The background raster is half size (shade_background_half).
-        const int rx = m == 1 ? std::min(x >> 1, depth[1].width - 1) : x;
-        const int ry = m == 1 ? std::min(y >> 1, depth[1].height - 1) : y;
-        const float d = depth[m](rx, ry);
-        if (d > 0.0f && ids[m](rx, ry) >= 0 && (best < 0 || d < z)) {
+        const float d = d_row[m][rx[m]];
+        if (d > 0.0f && id_row[m][rx[m]] >= 0 && (best < 0 || d < z)) {
           best = m;
           z = d;
         }
       }
       if (keep_labels) lab[x] = best < 0 ? kLabelNone : label_of[best];
-      if (best < 0) continue;
+      cv::Vec3f c(0.0f, 0.0f, 0.0f);
       if (best == 1) {
-        acc[x] += background_at(x, y) * weight;
-        continue;
+        c = background_at(bg, x) * weight;
+      } else if (best >= 0) {
+        const Vec3f ray(static_cast<float>(x - K_ideal_.cx) * inv_fx, ray_y, 1.0f);
+        const ShadeMesh& sm = best == 0 ? organ_ : instrument_;
+        const Vec3f r = shade_pixel(sm, T_mesh_camera[best], ray, id_row[best][x], z, irradiance);
+        c = cv::Vec3f(r.x(), r.y(), r.z()) * weight;
       }
-      const Vec3f ray(static_cast<float>(x - K_ideal_.cx) * inv_fx, ray_y, 1.0f);
-      const Vec3f c = shade_pixel(*meshes[best], T_mesh_camera[best], ray, ids[best](x, y), z, irradiance);
-      acc[x] += cv::Vec3f(c.x(), c.y(), c.z()) * weight;
+      if (first) acc[x] = c;
+      else acc[x] += c;
     }
   }
 }
 
-Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, const Vec3f& ray, std::int32_t tri,
+// Inlined into the row loops: the mesh's arrays stay in registers.
+[[gnu::always_inline]] inline Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, const Vec3f& ray, std::int32_t tri,
                                  float depth, float irradiance) const {
   const Vec3f p_c = ray * depth;
   const Vec3f Rp = T.R * p_c;
