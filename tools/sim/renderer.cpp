@@ -105,6 +105,8 @@ Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settin
   if (Status s = instrument_raster_.configure(scene.instrument, rc); !s) return s;
   accum_.create(K_ideal_.height, K_ideal_.width, CV_32FC3);
   background_half_.create(background_raster_.depth().height, background_raster_.depth().width, CV_32FC3);
+  background_need_.create(background_half_.rows, background_half_.cols, CV_8U);
+  winner_.create(K_ideal_.height, K_ideal_.width, CV_8U);
   background_taps_.resize(static_cast<std::size_t>(K_ideal_.width));
   for (int x = 0; x < K_ideal_.width; ++x) {  // half-resolution centres: x_half = (x + 0.5) / 2 - 0.5
     const float hx = std::max(0.0f, 0.5f * static_cast<float>(x) - 0.25f);

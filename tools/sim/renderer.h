@@ -81,7 +81,8 @@ class SceneRenderer {
   };
   // first: the sub-frame writes the accumulator instead of adding to it.
   void render_subframe(const WorldState& state, float weight, bool first, bool keep_labels);
-  void shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight, bool first, bool keep_labels);
+  void composite(bool keep_labels);
+  void shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight, bool first);
   // Radiance (linear) of one ideal pixel on a mesh: light at the camera.
   // ray = ((x - cx) / fx, (y - cy) / fy, 1): the pixel's point is ray * depth.
   Vec3f shade_pixel(const ShadeMesh& sm, const Xf& T_mesh_camera, const Vec3f& ray, std::int32_t tri,
@@ -98,6 +99,7 @@ class SceneRenderer {
   struct BackgroundRow {
     const cv::Vec3f *r0, *r1;
     float fy;
+    int y0, y1;
   };
   BackgroundRow background_row(int y) const;
   cv::Vec3f background_at(const BackgroundRow& row, int x) const;
@@ -115,6 +117,9 @@ class SceneRenderer {
   cv::Mat accum_;         // ideal image, linear RGB, CV_32FC3
   cv::Mat background_half_;  // half-resolution background radiance, CV_32FC3
   std::vector<BackgroundTap> background_taps_;  // per ideal column
+  cv::Mat background_need_;  // CV_8U, half size: 1 where a bilinear tap of a background pixel reads it
+  static constexpr std::uint8_t kNoSurface = 255;
+  cv::Mat winner_;           // CV_8U, ideal size: nearest mesh per pixel (0 organ, 1 background, 2 instrument)
   cv::Mat labels_ideal_;  // CV_8U
   cv::Mat map1_, map2_;   // output -> ideal (fixed point maps for cv::remap)
   std::vector<std::int32_t> nearest_;  // output pixel -> ideal pixel index, -1 outside

@@ -42,8 +42,50 @@ void SceneRenderer::render_subframe(const WorldState& state, float weight, bool 
   if (n > 20) d_organ = sum / n;
   const double d_ref = 90.0 * std::pow(std::max(d_organ, 20.0) / 90.0, 0.85);
   const auto irradiance = static_cast<float>(settings_.exposure * d_ref * d_ref);
+  composite(keep_labels);
   shade_background_half(T_mesh_camera[1], irradiance);
-  shade_rows(T_mesh_camera, irradiance, weight, first, keep_labels);
+  shade_rows(T_mesh_camera, irradiance, weight, first);
+}
+
+// The nearest surface per ideal pixel (the background raster is half
+// size), and which half-resolution background pixels its bilinear taps
+// read: only those are shaded (most of the background is behind the organ).
+void SceneRenderer::composite(bool keep_labels) {
+  const ImageView<const float> depth[3] = {organ_raster_.depth(), background_raster_.depth(),
+                                           instrument_raster_.depth()};
+  const ImageView<const std::int32_t> ids[3] = {organ_raster_.triangle_id(), background_raster_.triangle_id(),
+                                                instrument_raster_.triangle_id()};
+  const std::uint8_t label_of[3] = {kLabelOrgan, kLabelBackground, kLabelInstrument};
+  const int half_w = depth[1].width;
+  background_need_.setTo(cv::Scalar::all(0));
+  for (int y = 0; y < K_ideal_.height; ++y) {
+    std::uint8_t* win = winner_.ptr<std::uint8_t>(y);
+    std::uint8_t* lab = labels_ideal_.ptr<std::uint8_t>(y);
+    const int hy = std::min(y >> 1, depth[1].height - 1);
+    const float* d_row[3] = {depth[0].row(y), depth[1].row(hy), depth[2].row(y)};
+    const std::int32_t* id_row[3] = {ids[0].row(y), ids[1].row(hy), ids[2].row(y)};
+    const BackgroundRow bg = background_row(y);
+    std::uint8_t* need0 = background_need_.ptr<std::uint8_t>(bg.y0);
+    std::uint8_t* need1 = background_need_.ptr<std::uint8_t>(bg.y1);
+    for (int x = 0; x < K_ideal_.width; ++x) {
+      const int rx[3] = {x, std::min(x >> 1, half_w - 1), x};
+      int best = -1;
+      float z = 0.0f;
+      for (int m = 0; m < 3; ++m) {
+        const float d = d_row[m][rx[m]];
+        if (d > 0.0f && id_row[m][rx[m]] >= 0 && (best < 0 || d < z)) {
+          best = m;
+          z = d;
+        }
+      }
+      win[x] = best < 0 ? kNoSurface : static_cast<std::uint8_t>(best);
+      if (keep_labels) lab[x] = best < 0 ? kLabelNone : label_of[best];
+      if (best == 1) {
+        const BackgroundTap& t = background_taps_[static_cast<std::size_t>(x)];
+        need0[t.x0] = need0[t.x1] = need1[t.x0] = need1[t.x1] = 1;
+      }
+    }
+  }
 }
 
 void SceneRenderer::shade_background_half(const Xf& T_world_camera, float irradiance) {
@@ -53,8 +95,10 @@ void SceneRenderer::shade_background_half(const Xf& T_world_camera, float irradi
   const auto inv_fx = static_cast<float>(1.0 / K.fx), inv_fy = static_cast<float>(1.0 / K.fy);
   for (int y = 0; y < depth.height; ++y) {
     auto* out = background_half_.ptr<cv::Vec3f>(y);
+    const std::uint8_t* need = background_need_.ptr<std::uint8_t>(y);
     const float ray_y = static_cast<float>(y - K.cy) * inv_fy;
     for (int x = 0; x < depth.width; ++x) {
+      if (!need[x]) continue;  // no output pixel reads it (composite())
       const float d = depth(x, y);
       const std::int32_t tri = ids(x, y);
       if (d <= 0.0f || tri < 0) {
@@ -73,7 +117,7 @@ SceneRenderer::BackgroundRow SceneRenderer::background_row(int y) const {
   const float hy = std::max(0.0f, 0.5f * static_cast<float>(y) - 0.25f);
   const int y0 = std::min(static_cast<int>(hy), background_half_.rows - 1);
   const int y1 = std::min(y0 + 1, background_half_.rows - 1);
-  return {background_half_.ptr<cv::Vec3f>(y0), background_half_.ptr<cv::Vec3f>(y1), hy - static_cast<float>(y0)};
+  return {background_half_.ptr<cv::Vec3f>(y0), background_half_.ptr<cv::Vec3f>(y1), hy - static_cast<float>(y0), y0, y1};
 }
 
 cv::Vec3f SceneRenderer::background_at(const BackgroundRow& r, int x) const {
@@ -82,45 +126,30 @@ cv::Vec3f SceneRenderer::background_at(const BackgroundRow& r, int x) const {
   return (r.r0[t.x0] * (1 - fx) + r.r0[t.x1] * fx) * (1 - fy) + (r.r1[t.x0] * (1 - fx) + r.r1[t.x1] * fx) * fy;
 }
 
-// Per row: row pointers into the three rasters (the background's is half
-// size), the nearest surface per pixel, then its radiance. The first
-// sub-frame writes the accumulator (no clearing pass), later ones add.
-void SceneRenderer::shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight, bool first,
-                               bool keep_labels) {
+// Per row: the radiance of each pixel's nearest surface (composite()).
+// The first sub-frame writes the accumulator (no clearing pass), later
+// ones add.
+void SceneRenderer::shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight, bool first) {
   const ImageView<const float> depth[3] = {organ_raster_.depth(), background_raster_.depth(),
                                            instrument_raster_.depth()};
   const ImageView<const std::int32_t> ids[3] = {organ_raster_.triangle_id(), background_raster_.triangle_id(),
                                                 instrument_raster_.triangle_id()};
-  const std::uint8_t label_of[3] = {kLabelOrgan, kLabelBackground, kLabelInstrument};
   const auto inv_fx = static_cast<float>(1.0 / K_ideal_.fx), inv_fy = static_cast<float>(1.0 / K_ideal_.fy);
-  const int half_w = depth[1].width;
   for (int y = 0; y < K_ideal_.height; ++y) {
     const float ray_y = static_cast<float>(y - K_ideal_.cy) * inv_fy;
     auto* acc = accum_.ptr<cv::Vec3f>(y);
-    std::uint8_t* lab = labels_ideal_.ptr<std::uint8_t>(y);
-    const int hy = std::min(y >> 1, depth[1].height - 1);
-    const float* d_row[3] = {depth[0].row(y), depth[1].row(hy), depth[2].row(y)};
-    const std::int32_t* id_row[3] = {ids[0].row(y), ids[1].row(hy), ids[2].row(y)};
+    const std::uint8_t* win = winner_.ptr<std::uint8_t>(y);
     const BackgroundRow bg = background_row(y);
     for (int x = 0; x < K_ideal_.width; ++x) {
-      const int rx[3] = {x, std::min(x >> 1, half_w - 1), x};
-      int best = -1;
-      float z = 0.0f;
-      for (int m = 0; m < 3; ++m) {
-        const float d = d_row[m][rx[m]];
-        if (d > 0.0f && id_row[m][rx[m]] >= 0 && (best < 0 || d < z)) {
-          best = m;
-          z = d;
-        }
-      }
-      if (keep_labels) lab[x] = best < 0 ? kLabelNone : label_of[best];
+      const int best = win[x];
       cv::Vec3f c(0.0f, 0.0f, 0.0f);
       if (best == 1) {
         c = background_at(bg, x) * weight;
-      } else if (best >= 0) {
+      } else if (best != kNoSurface) {
         const Vec3f ray(static_cast<float>(x - K_ideal_.cx) * inv_fx, ray_y, 1.0f);
         const ShadeMesh& sm = best == 0 ? organ_ : instrument_;
-        const Vec3f r = shade_pixel(sm, T_mesh_camera[best], ray, id_row[best][x], z, irradiance);
+        const Vec3f r =
+            shade_pixel(sm, T_mesh_camera[best], ray, ids[best](x, y), depth[best](x, y), irradiance);
         c = cv::Vec3f(r.x(), r.y(), r.z()) * weight;
       }
       if (first) acc[x] = c;
