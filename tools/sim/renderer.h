@@ -104,6 +104,7 @@ class SceneRenderer {
   BackgroundRow background_row(int y) const;
   cv::Vec3f background_at(const BackgroundRow& row, int x) const;
   void finish(int frame, cv::Mat& rgb, cv::Mat& labels);
+  void noise_gamma_row(const cv::Vec3f* in, const float* gain, const float* noise, int W, cv::Vec3b* out) const;
 
   RenderSettings settings_;
   Pinhole K_ideal_;
