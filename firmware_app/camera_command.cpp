@@ -171,6 +171,41 @@ void wait_for_stop(const sigset_t& signals, const LiveStatus& status, bool print
   }
 }
 
+// Owner thread, after the tracking thread ended: stats, the summary line,
+// summary.json with --out. The exit status.
+int finish_run(const CameraArgs& args, const SequenceConfig& cal, std::int64_t t0_ns, const LibcameraCapture& capture,
+               const TrackerProcessor& processor, RunWriter* writer, LiveLoop* loop) {
+  ReplayStats& stats = loop->stats;
+  stats.wall_s = static_cast<double>(platform::monotonic_ns() - t0_ns) * 1e-9;
+  stats.fps = stats.wall_s > 0 ? stats.frames / stats.wall_s : 0.0;
+  stats.mean_latency_ms = loop->latency.mean_ms();
+  stats.p99_latency_ms = loop->latency.quantile_ms(0.99);
+  stats.max_latency_ms = loop->latency.max_ms();
+  stats.peak_rss_mb = platform::peak_rss_mb();
+  stats.tracking_thread_allocations = static_cast<std::int64_t>(loop->allocations);
+  if (loop->pixel_error != PixelStatus::kOk) stats.error = std::string("camera buffer: ") + describe(loop->pixel_error);
+  const CaptureCounters counters = capture.counters();
+  std::fprintf(stderr, "\n%d frames: %d with a pose, %d lost  %.1f fps  latency mean %.2f ms p99 %.2f ms"
+               "  skipped %llu  failed %llu  tracking-thread allocations %lld\n",
+               stats.frames, stats.tracked, stats.lost, stats.fps, stats.mean_latency_ms, stats.p99_latency_ms,
+               static_cast<unsigned long long>(counters.skipped), static_cast<unsigned long long>(counters.failed),
+               static_cast<long long>(stats.tracking_thread_allocations));
+  if (writer) {
+    if (Status s = writer->finish(); !s && stats.error.empty()) stats.error = s.message();
+    ReplayOptions opt;
+    opt.out_dir = args.out;
+    opt.realtime = true;
+    opt.summary_extra = {{"width", cal.width}, {"height", cal.height},
+                         {"camera_skipped_frames", static_cast<double>(counters.skipped)},
+                         {"camera_failed_frames", static_cast<double>(counters.failed)}};
+    processor.append_summary(&opt.summary_extra);
+    if (Status s = write_file(std::filesystem::path(args.out) / "summary.json", format_replay_summary(stats, opt)); !s)
+      std::fprintf(stderr, "scopetrack: %s\n", s.message().c_str());
+  }
+  if (!stats.error.empty()) std::fprintf(stderr, "scopetrack: capture ended: %s\n", stats.error.c_str());
+  return stats.error.empty() ? 0 : 1;
+}
+
 }  // namespace
 
 int run_list_cameras(Args args) {
@@ -245,35 +280,7 @@ int run_camera(Args argv) {
   wait_for_stop(signals, *status, true);
   capture->stop();
   tracking.join();
-  ReplayStats& stats = loop->stats;
-  stats.wall_s = static_cast<double>(platform::monotonic_ns() - t0_ns) * 1e-9;
-  stats.fps = stats.wall_s > 0 ? stats.frames / stats.wall_s : 0.0;
-  stats.mean_latency_ms = loop->latency.mean_ms();
-  stats.p99_latency_ms = loop->latency.quantile_ms(0.99);
-  stats.max_latency_ms = loop->latency.max_ms();
-  stats.peak_rss_mb = platform::peak_rss_mb();
-  stats.tracking_thread_allocations = static_cast<std::int64_t>(loop->allocations);
-  if (loop->pixel_error != PixelStatus::kOk) stats.error = std::string("camera buffer: ") + describe(loop->pixel_error);
-  const CaptureCounters counters = capture->counters();
-  std::fprintf(stderr, "\n%d frames: %d with a pose, %d lost  %.1f fps  latency mean %.2f ms p99 %.2f ms"
-               "  skipped %llu  failed %llu  tracking-thread allocations %lld\n",
-               stats.frames, stats.tracked, stats.lost, stats.fps, stats.mean_latency_ms, stats.p99_latency_ms,
-               static_cast<unsigned long long>(counters.skipped), static_cast<unsigned long long>(counters.failed),
-               static_cast<long long>(stats.tracking_thread_allocations));
-  if (writer) {
-    if (Status s = writer->finish(); !s && stats.error.empty()) stats.error = s.message();
-    ReplayOptions opt;
-    opt.out_dir = args.out;
-    opt.realtime = true;
-    opt.summary_extra = {{"width", cal.width}, {"height", cal.height},
-                         {"camera_skipped_frames", static_cast<double>(counters.skipped)},
-                         {"camera_failed_frames", static_cast<double>(counters.failed)}};
-    processor->append_summary(&opt.summary_extra);
-    if (Status s = write_file(std::filesystem::path(args.out) / "summary.json", format_replay_summary(stats, opt)); !s)
-      std::fprintf(stderr, "scopetrack: %s\n", s.message().c_str());
-  }
-  if (!stats.error.empty()) std::fprintf(stderr, "scopetrack: capture ended: %s\n", stats.error.c_str());
-  return stats.error.empty() ? 0 : 1;
+  return finish_run(args, cal, t0_ns, *capture, *processor, writer.get(), loop.get());
 }
 
 }  // namespace st::app
