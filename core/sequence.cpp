@@ -80,7 +80,7 @@ std::string read_string(const cv::FileStorage& fs, const char* key) {
   return n.isString() ? static_cast<std::string>(n) : std::string();
 }
 
-Status read_scalars(const cv::FileStorage& fs, SequenceConfig* c) {
+Status read_scalars(const cv::FileStorage& fs, bool need_files, SequenceConfig* c) {
   const cv::FileNode w = fs["image_width"], h = fs["image_height"], f = fs["fps"];
   if (!w.isInt() || !h.isInt()) return make_error("sequence.yaml: image_width and image_height must be integers");
   c->width = static_cast<int>(w);
@@ -89,15 +89,16 @@ Status read_scalars(const cv::FileStorage& fs, SequenceConfig* c) {
     return make_error("sequence.yaml: image size " + std::to_string(c->width) + "x" +
                       std::to_string(c->height) + " is outside 1x1.." +
                       std::to_string(kMaxImageWidth) + "x" + std::to_string(kMaxImageHeight));
-  if (!f.isReal() && !f.isInt()) return make_error("sequence.yaml: fps missing (frames per second)");
-  c->fps = static_cast<double>(f);
-  if (!std::isfinite(c->fps) || c->fps <= 0.0 || c->fps > 10000.0)
+  const bool fps_given = f.isReal() || f.isInt();
+  if (!fps_given && need_files) return make_error("sequence.yaml: fps missing (frames per second)");
+  c->fps = fps_given ? static_cast<double>(f) : 0.0;
+  if (fps_given && (!std::isfinite(c->fps) || c->fps <= 0.0 || c->fps > 10000.0))
     return make_error("sequence.yaml: fps must be in (0, 10000], got " + std::to_string(c->fps));
   c->video = read_string(fs, "video");
   c->mesh = read_string(fs, "mesh");
   c->groundtruth = read_string(fs, "groundtruth");
   c->markers = read_string(fs, "markers");
-  if (c->video.empty() || c->mesh.empty())
+  if (need_files && (c->video.empty() || c->mesh.empty()))
     return make_error("sequence.yaml: 'video' and 'mesh' file names are required");
   return Status::Ok();
 }
@@ -138,16 +139,16 @@ Status check_yaml_shape(std::string_view text) {
   return Status::Ok();
 }
 
-}  // namespace
-
-Result<SequenceConfig> parse_sequence_yaml(std::string_view text) {
+// need_files: a sequence (fps, video and mesh required); else a camera
+// calibration (fps optional, names ignored).
+Result<SequenceConfig> parse_yaml(std::string_view text, bool need_files) {
   if (text.empty()) return make_error("sequence.yaml is empty");
   if (Status shape = check_yaml_shape(text); !shape) return Error{shape.message()};
   SequenceConfig c;
   try {
     cv::FileStorage fs(std::string(text), cv::FileStorage::READ | cv::FileStorage::MEMORY);
     if (!fs.isOpened()) return make_error("sequence.yaml could not be parsed as OpenCV YAML");
-    if (Status s = read_scalars(fs, &c); !s) return Error{s.message()};
+    if (Status s = read_scalars(fs, need_files, &c); !s) return Error{s.message()};
     if (Status s = read_camera(fs, &c); !s) return Error{"sequence.yaml: " + s.message()};
     if (Status s = read_pose(fs, &c); !s) return Error{s.message()};
   } catch (const cv::Exception& e) {
@@ -156,6 +157,22 @@ Result<SequenceConfig> parse_sequence_yaml(std::string_view text) {
     return make_error(std::string("sequence.yaml could not be read: ") + e.what());
   }
   return c;
+}
+
+}  // namespace
+
+Result<SequenceConfig> parse_sequence_yaml(std::string_view text) { return parse_yaml(text, true); }
+
+Result<SequenceConfig> parse_calibration_yaml(std::string_view text) {
+  auto c = parse_yaml(text, false);
+  if (c) return c;
+  // The messages name sequence.yaml (camera errors twice, as a prefix of
+  // a prefixed message); here the file is a calibration.
+  std::string message = c.message();
+  for (std::size_t at; (at = message.find("sequence.yaml: sequence.yaml")) != std::string::npos;) message.erase(at, 15);
+  for (std::size_t at; (at = message.find("sequence.yaml")) != std::string::npos;)
+    message.replace(at, 13, "calibration file");
+  return make_error(std::move(message));
 }
 
 std::string format_sequence_yaml(const SequenceConfig& c) {

@@ -34,6 +34,13 @@ inline constexpr double kMaxRotationError = 1e-3;
 // non-empty video and mesh names. Bad YAML becomes an Error.
 Result<SequenceConfig> parse_sequence_yaml(std::string_view text);
 
+// A live camera's calibration/registration file: the camera keys of
+// sequence.yaml (image_width, image_height, camera_matrix,
+// distortion_coefficients, T_camera_model_init), validated the same way;
+// fps is optional (0 when absent), file names are not required. A
+// sequence.yaml is a valid calibration file.
+Result<SequenceConfig> parse_calibration_yaml(std::string_view text);
+
 // OpenCV FileStorage YAML with the keys of the spec (optional names only
 // when non-empty).
 std::string format_sequence_yaml(const SequenceConfig& config);

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <string_view>
 
+#include "firmware_app/camera_command.h"
 #include "firmware_app/cli.h"
 
 namespace {
@@ -22,6 +23,9 @@ constexpr std::array kCommands = {
     st::app::Command{"--sequence", "DIR --out DIR [--realtime] [--no-mask] [--ring N] [--stream EP]",
                      "replay a sequence through the tracker: trajectory.txt, frames.csv, summary.json in --out",
                      st::app::run_replay},
+    st::app::Command{"--camera", "ID --mesh FILE --calibration FILE [--out DIR] [--ring N] [--no-mask]",
+                     "track a live libcamera camera until Ctrl-C (not yet run on hardware)", st::app::run_camera},
+    st::app::Command{"--list-cameras", "", "list the cameras libcamera finds", st::app::run_list_cameras},
     st::app::Command{"--version", "", "print the version", run_version},
     st::app::Command{"--help", "", "this text", run_help},
 };

@@ -12,8 +12,6 @@
 
 namespace st {
 
-namespace {
-
 FrameState frame_state(TrackState s) {
   switch (s) {
     case TrackState::kInitialised: return FrameState::kInitialised;
@@ -23,6 +21,8 @@ FrameState frame_state(TrackState s) {
   }
   return FrameState::kLost;
 }
+
+namespace {
 
 std::string json_escaped(const std::string& s) {
   std::string out;

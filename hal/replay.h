@@ -85,6 +85,9 @@ Result<ReplayStats> run_replay(const LoadedSequence& sequence, FrameProcessor& p
 // summary.json text for stats (fields of the spec + the replay's own).
 std::string format_replay_summary(const ReplayStats& stats, const ReplayOptions& options);
 
+// The tracker's state as frames.csv spells it (also used by live capture).
+FrameState frame_state(TrackState s);
+
 // Frames in a Y4M file estimated from its size (0 for a pipe or unknown).
 int estimate_frame_count(const LoadedSequence& sequence);
 

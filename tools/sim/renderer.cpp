@@ -105,6 +105,15 @@ Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settin
   if (Status s = instrument_raster_.configure(scene.instrument, rc); !s) return s;
   accum_.create(K_ideal_.height, K_ideal_.width, CV_32FC3);
   background_half_.create(background_raster_.depth().height, background_raster_.depth().width, CV_32FC3);
+  background_need_.create(background_half_.rows, background_half_.cols, CV_8U);
+  winner_.create(K_ideal_.height, K_ideal_.width, CV_8U);
+  background_taps_.resize(static_cast<std::size_t>(K_ideal_.width));
+  for (int x = 0; x < K_ideal_.width; ++x) {  // half-resolution centres: x_half = (x + 0.5) / 2 - 0.5
+    const float hx = std::max(0.0f, 0.5f * static_cast<float>(x) - 0.25f);
+    const int x0 = std::min(static_cast<int>(hx), background_half_.cols - 1);
+    background_taps_[static_cast<std::size_t>(x)] = {x0, std::min(x0 + 1, background_half_.cols - 1),
+                                                     hx - static_cast<float>(x0)};
+  }
   labels_ideal_.create(K_ideal_.height, K_ideal_.width, CV_8U);
   linear_out_.create(settings.K.height, settings.K.width, CV_32FC3);
   Rng rng(mix_seed(settings.seed, 0xC0FFEE));
@@ -169,11 +178,10 @@ void SceneRenderer::build_camera_maps() {
 
 void SceneRenderer::render(const Trajectory& trajectory, int frame, cv::Mat& rgb, cv::Mat& labels) {
   const int n = trajectory.blur_subframes(frame);
-  accum_.setTo(cv::Scalar::all(0));
   for (int k = 0; k < n; ++k) {
     // Shutter open for half the frame interval, centred on the frame time.
     const double offset = n == 1 ? 0.0 : (k - (n - 1) / 2.0) / (n - 1) * 0.5;
-    render_subframe(trajectory.at(frame + offset), 1.0f / static_cast<float>(n), 2 * k == n - 1);
+    render_subframe(trajectory.at(frame + offset), 1.0f / static_cast<float>(n), k == 0, 2 * k == n - 1);
   }
   finish(frame, rgb, labels);
 }

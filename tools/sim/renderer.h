@@ -79,8 +79,10 @@ class SceneRenderer {
     Eigen::Matrix3f R;
     Vec3f t;
   };
-  void render_subframe(const WorldState& state, float weight, bool keep_labels);
-  void shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight, bool keep_labels);
+  // first: the sub-frame writes the accumulator instead of adding to it.
+  void render_subframe(const WorldState& state, float weight, bool first, bool keep_labels);
+  void composite(bool keep_labels);
+  void shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight, bool first);
   // Radiance (linear) of one ideal pixel on a mesh: light at the camera.
   // ray = ((x - cx) / fx, (y - cy) / fy, 1): the pixel's point is ray * depth.
   Vec3f shade_pixel(const ShadeMesh& sm, const Xf& T_mesh_camera, const Vec3f& ray, std::int32_t tri,
@@ -88,8 +90,21 @@ class SceneRenderer {
   // The background at half resolution (it is rasterised at half size and
   // mostly far or out of focus); full-resolution pixels sample it bilinearly.
   void shade_background_half(const Xf& T_world_camera, float irradiance);
-  cv::Vec3f background_at(int x, int y) const;
+  // Bilinear taps into background_half_ for full-resolution pixels: the
+  // columns' once (configure), a row's per row.
+  struct BackgroundTap {
+    int x0, x1;
+    float fx;
+  };
+  struct BackgroundRow {
+    const cv::Vec3f *r0, *r1;
+    float fy;
+    int y0, y1;
+  };
+  BackgroundRow background_row(int y) const;
+  cv::Vec3f background_at(const BackgroundRow& row, int x) const;
   void finish(int frame, cv::Mat& rgb, cv::Mat& labels);
+  void noise_gamma_row(const cv::Vec3f* in, const float* gain, const float* noise, int W, cv::Vec3b* out) const;
 
   RenderSettings settings_;
   Pinhole K_ideal_;
@@ -102,6 +117,10 @@ class SceneRenderer {
   MeshRasterizer organ_raster_, background_raster_, instrument_raster_;
   cv::Mat accum_;         // ideal image, linear RGB, CV_32FC3
   cv::Mat background_half_;  // half-resolution background radiance, CV_32FC3
+  std::vector<BackgroundTap> background_taps_;  // per ideal column
+  cv::Mat background_need_;  // CV_8U, half size: 1 where a bilinear tap of a background pixel reads it
+  static constexpr std::uint8_t kNoSurface = 255;
+  cv::Mat winner_;           // CV_8U, ideal size: nearest mesh per pixel (0 organ, 1 background, 2 instrument)
   cv::Mat labels_ideal_;  // CV_8U
   cv::Mat map1_, map2_;   // output -> ideal (fixed point maps for cv::remap)
   std::vector<std::int32_t> nearest_;  // output pixel -> ideal pixel index, -1 outside

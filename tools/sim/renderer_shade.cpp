@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "tools/sim/renderer.h"
@@ -14,7 +15,7 @@ constexpr float kAmbient = 0.05f;  // inter-reflections: shadowed tissue is not 
 
 }  // namespace
 
-void SceneRenderer::render_subframe(const WorldState& state, float weight, bool keep_labels) {
+void SceneRenderer::render_subframe(const WorldState& state, float weight, bool first, bool keep_labels) {
   const SE3 T_camera_world = state.T_world_camera.inverse();
   organ_raster_.render(T_camera_world * state.T_world_model, K_ideal_);
   background_raster_.render(T_camera_world, K_ideal_);
@@ -42,8 +43,50 @@ void SceneRenderer::render_subframe(const WorldState& state, float weight, bool 
   if (n > 20) d_organ = sum / n;
   const double d_ref = 90.0 * std::pow(std::max(d_organ, 20.0) / 90.0, 0.85);
   const auto irradiance = static_cast<float>(settings_.exposure * d_ref * d_ref);
+  composite(keep_labels);
   shade_background_half(T_mesh_camera[1], irradiance);
-  shade_rows(T_mesh_camera, irradiance, weight, keep_labels);
+  shade_rows(T_mesh_camera, irradiance, weight, first);
+}
+
+// The nearest surface per ideal pixel (the background raster is half
+// size), and which half-resolution background pixels its bilinear taps
+// read: only those are shaded (most of the background is behind the organ).
+void SceneRenderer::composite(bool keep_labels) {
+  const ImageView<const float> depth[3] = {organ_raster_.depth(), background_raster_.depth(),
+                                           instrument_raster_.depth()};
+  const ImageView<const std::int32_t> ids[3] = {organ_raster_.triangle_id(), background_raster_.triangle_id(),
+                                                instrument_raster_.triangle_id()};
+  const std::uint8_t label_of[3] = {kLabelOrgan, kLabelBackground, kLabelInstrument};
+  const int half_w = depth[1].width;
+  background_need_.setTo(cv::Scalar::all(0));
+  for (int y = 0; y < K_ideal_.height; ++y) {
+    std::uint8_t* win = winner_.ptr<std::uint8_t>(y);
+    std::uint8_t* lab = labels_ideal_.ptr<std::uint8_t>(y);
+    const int hy = std::min(y >> 1, depth[1].height - 1);
+    const float* d_row[3] = {depth[0].row(y), depth[1].row(hy), depth[2].row(y)};
+    const std::int32_t* id_row[3] = {ids[0].row(y), ids[1].row(hy), ids[2].row(y)};
+    const BackgroundRow bg = background_row(y);
+    std::uint8_t* need0 = background_need_.ptr<std::uint8_t>(bg.y0);
+    std::uint8_t* need1 = background_need_.ptr<std::uint8_t>(bg.y1);
+    for (int x = 0; x < K_ideal_.width; ++x) {
+      const int rx[3] = {x, std::min(x >> 1, half_w - 1), x};
+      int best = -1;
+      float z = 0.0f;
+      for (int m = 0; m < 3; ++m) {
+        const float d = d_row[m][rx[m]];
+        if (d > 0.0f && id_row[m][rx[m]] >= 0 && (best < 0 || d < z)) {
+          best = m;
+          z = d;
+        }
+      }
+      win[x] = best < 0 ? kNoSurface : static_cast<std::uint8_t>(best);
+      if (keep_labels) lab[x] = best < 0 ? kLabelNone : label_of[best];
+      if (best == 1) {
+        const BackgroundTap& t = background_taps_[static_cast<std::size_t>(x)];
+        need0[t.x0] = need0[t.x1] = need1[t.x0] = need1[t.x1] = 1;
+      }
+    }
+  }
 }
 
 void SceneRenderer::shade_background_half(const Xf& T_world_camera, float irradiance) {
@@ -53,8 +96,10 @@ void SceneRenderer::shade_background_half(const Xf& T_world_camera, float irradi
   const auto inv_fx = static_cast<float>(1.0 / K.fx), inv_fy = static_cast<float>(1.0 / K.fy);
   for (int y = 0; y < depth.height; ++y) {
     auto* out = background_half_.ptr<cv::Vec3f>(y);
+    const std::uint8_t* need = background_need_.ptr<std::uint8_t>(y);
     const float ray_y = static_cast<float>(y - K.cy) * inv_fy;
     for (int x = 0; x < depth.width; ++x) {
+      if (!need[x]) continue;  // no output pixel reads it (composite())
       const float d = depth(x, y);
       const std::int32_t tri = ids(x, y);
       if (d <= 0.0f || tri < 0) {
@@ -68,62 +113,54 @@ void SceneRenderer::shade_background_half(const Xf& T_world_camera, float irradi
   }
 }
 
-cv::Vec3f SceneRenderer::background_at(int x, int y) const {
-  // Half-resolution pixel centres: x_half = (x + 0.5) / 2 - 0.5.
-  const float hx = std::max(0.0f, 0.5f * static_cast<float>(x) - 0.25f);
+SceneRenderer::BackgroundRow SceneRenderer::background_row(int y) const {
+  // Half-resolution pixel centres: y_half = (y + 0.5) / 2 - 0.5.
   const float hy = std::max(0.0f, 0.5f * static_cast<float>(y) - 0.25f);
-  const int x0 = std::min(static_cast<int>(hx), background_half_.cols - 1);
   const int y0 = std::min(static_cast<int>(hy), background_half_.rows - 1);
-  const int x1 = std::min(x0 + 1, background_half_.cols - 1), y1 = std::min(y0 + 1, background_half_.rows - 1);
-  const float fx = hx - static_cast<float>(x0), fy = hy - static_cast<float>(y0);
-  const auto* r0 = background_half_.ptr<cv::Vec3f>(y0);
-  const auto* r1 = background_half_.ptr<cv::Vec3f>(y1);
-  return (r0[x0] * (1 - fx) + r0[x1] * fx) * (1 - fy) + (r1[x0] * (1 - fx) + r1[x1] * fx) * fy;
+  const int y1 = std::min(y0 + 1, background_half_.rows - 1);
+  return {background_half_.ptr<cv::Vec3f>(y0), background_half_.ptr<cv::Vec3f>(y1), hy - static_cast<float>(y0), y0, y1};
 }
 
-void SceneRenderer::shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight,
-                               bool keep_labels) {
-  const MeshRasterizer* rasters[3] = {&organ_raster_, &background_raster_, &instrument_raster_};
-  const ShadeMesh* meshes[3] = {&organ_, &background_, &instrument_};
-  const std::uint8_t label_of[3] = {kLabelOrgan, kLabelBackground, kLabelInstrument};
-  ImageView<const float> depth[3];
-  ImageView<const std::int32_t> ids[3];
-  for (int m = 0; m < 3; ++m) {
-    depth[m] = rasters[m]->depth();
-    ids[m] = rasters[m]->triangle_id();
-  }
+cv::Vec3f SceneRenderer::background_at(const BackgroundRow& r, int x) const {
+  const BackgroundTap& t = background_taps_[static_cast<std::size_t>(x)];
+  const float fx = t.fx, fy = r.fy;
+  return (r.r0[t.x0] * (1 - fx) + r.r0[t.x1] * fx) * (1 - fy) + (r.r1[t.x0] * (1 - fx) + r.r1[t.x1] * fx) * fy;
+}
+
+// Per row: the radiance of each pixel's nearest surface (composite()).
+// The first sub-frame writes the accumulator (no clearing pass), later
+// ones add.
+void SceneRenderer::shade_rows(const Xf T_mesh_camera[3], float irradiance, float weight, bool first) {
+  const ImageView<const float> depth[3] = {organ_raster_.depth(), background_raster_.depth(),
+                                           instrument_raster_.depth()};
+  const ImageView<const std::int32_t> ids[3] = {organ_raster_.triangle_id(), background_raster_.triangle_id(),
+                                                instrument_raster_.triangle_id()};
   const auto inv_fx = static_cast<float>(1.0 / K_ideal_.fx), inv_fy = static_cast<float>(1.0 / K_ideal_.fy);
   for (int y = 0; y < K_ideal_.height; ++y) {
     const float ray_y = static_cast<float>(y - K_ideal_.cy) * inv_fy;
     auto* acc = accum_.ptr<cv::Vec3f>(y);
-    std::uint8_t* lab = labels_ideal_.ptr<std::uint8_t>(y);
+    const std::uint8_t* win = winner_.ptr<std::uint8_t>(y);
+    const BackgroundRow bg = background_row(y);
     for (int x = 0; x < K_ideal_.width; ++x) {
-      int best = -1;
-      float z = 0.0f;
-      for (int m = 0; m < 3; ++m) {
-        // The background raster is half size (shade_background_half).
-        const int rx = m == 1 ? std::min(x >> 1, depth[1].width - 1) : x;
-        const int ry = m == 1 ? std::min(y >> 1, depth[1].height - 1) : y;
-        const float d = depth[m](rx, ry);
-        if (d > 0.0f && ids[m](rx, ry) >= 0 && (best < 0 || d < z)) {
-          best = m;
-          z = d;
-        }
-      }
-      if (keep_labels) lab[x] = best < 0 ? kLabelNone : label_of[best];
-      if (best < 0) continue;
+      const int best = win[x];
+      cv::Vec3f c(0.0f, 0.0f, 0.0f);
       if (best == 1) {
-        acc[x] += background_at(x, y) * weight;
-        continue;
+        c = background_at(bg, x) * weight;
+      } else if (best != kNoSurface) {
+        const Vec3f ray(static_cast<float>(x - K_ideal_.cx) * inv_fx, ray_y, 1.0f);
+        const ShadeMesh& sm = best == 0 ? organ_ : instrument_;
+        const Vec3f r =
+            shade_pixel(sm, T_mesh_camera[best], ray, ids[best](x, y), depth[best](x, y), irradiance);
+        c = cv::Vec3f(r.x(), r.y(), r.z()) * weight;
       }
-      const Vec3f ray(static_cast<float>(x - K_ideal_.cx) * inv_fx, ray_y, 1.0f);
-      const Vec3f c = shade_pixel(*meshes[best], T_mesh_camera[best], ray, ids[best](x, y), z, irradiance);
-      acc[x] += cv::Vec3f(c.x(), c.y(), c.z()) * weight;
+      if (first) acc[x] = c;
+      else acc[x] += c;
     }
   }
 }
 
-Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, const Vec3f& ray, std::int32_t tri,
+// Inlined into the row loops: the mesh's arrays stay in registers.
+[[gnu::always_inline]] inline Vec3f SceneRenderer::shade_pixel(const ShadeMesh& sm, const Xf& T, const Vec3f& ray, std::int32_t tri,
                                  float depth, float irradiance) const {
   const Vec3f p_c = ray * depth;
   const Vec3f Rp = T.R * p_c;
@@ -174,13 +211,12 @@ void SceneRenderer::finish(int frame, cv::Mat& rgb, cv::Mat& labels) {
   labels.create(H, W, CV_8U);
   const std::uint64_t noise_seed = settings_.noise_seed != 0 ? settings_.noise_seed : settings_.seed;
   Rng rng(mix_seed(noise_seed, static_cast<std::uint64_t>(frame) + 1));
-  const float lut_scale = static_cast<float>(gamma_lut_.size()) - 1.0f;
   for (int y = 0; y < H; ++y) {
     const auto* in = lin.ptr<cv::Vec3f>(y);
     auto* out = rgb.ptr<cv::Vec3b>(y);
     std::uint8_t* lab = labels.ptr<std::uint8_t>(y);
     // Each row reads the noise table from a random place.
-    std::size_t g = rng.next_u64() % (gaussian_.size() - 3 * static_cast<std::size_t>(W));
+    const std::size_t g = rng.next_u64() % (gaussian_.size() - 3 * static_cast<std::size_t>(W));
     const std::size_t row = static_cast<std::size_t>(y) * W;
     if (distorted) {
       const std::uint8_t* ideal = labels_ideal_.ptr<std::uint8_t>();
@@ -188,15 +224,50 @@ void SceneRenderer::finish(int frame, cv::Mat& rgb, cv::Mat& labels) {
     } else {
       std::copy_n(labels_ideal_.ptr<std::uint8_t>(y), W, lab);
     }
-    for (int x = 0; x < W; ++x) {
-      const std::size_t i = row + x;
-      const cv::Vec3f c = in[x] * gain_[i];
-      const float mean = std::min(1.0f, (c[0] + c[1] + c[2]) * (1.0f / 3.0f));
-      const float sigma = sigma_lut_[static_cast<std::size_t>(mean * 255.0f)];
-      for (int k = 0; k < 3; ++k) {
-        const float v = std::clamp(c[k] + sigma * gaussian_[g++], 0.0f, 1.0f);
-        out[x][k] = gamma_lut_[static_cast<std::size_t>(v * lut_scale + 0.5f)];
-      }
+    noise_gamma_row(in, &gain_[row], &gaussian_[g], W, out);
+  }
+}
+
+// Pixel x of a row: c = in * gain, plus noise sigma(mean of c) * N(0, 1)
+// per channel (noise[3x + k]), clamped, through the gamma table. Four
+// pixels at a time with OpenCV's universal intrinsics (SSE2 / NEON), the
+// same float operations in the same order as the scalar tail, so both give
+// the same bytes.
+void SceneRenderer::noise_gamma_row(const cv::Vec3f* in, const float* gain, const float* noise, int W,
+                                    cv::Vec3b* out) const {
+  const float lut_scale = static_cast<float>(gamma_lut_.size()) - 1.0f;
+  int x = 0;
+#if CV_SIMD128
+  const cv::v_float32x4 zero = cv::v_setzero_f32(), one = cv::v_setall_f32(1.0f);
+  const cv::v_float32x4 third = cv::v_setall_f32(1.0f / 3.0f), s255 = cv::v_setall_f32(255.0f);
+  const cv::v_float32x4 scale = cv::v_setall_f32(lut_scale), half = cv::v_setall_f32(0.5f);
+  alignas(16) int sigma_index[4], gamma_index[3][4];
+  alignas(16) float sigma[4];
+  for (; x + 4 <= W; x += 4) {
+    cv::v_float32x4 c[3], n[3];
+    cv::v_load_deinterleave(&in[x][0], c[0], c[1], c[2]);
+    cv::v_load_deinterleave(noise + 3 * x, n[0], n[1], n[2]);
+    const cv::v_float32x4 g = cv::v_load(gain + x);
+    for (auto& ck : c) ck = ck * g;
+    const cv::v_float32x4 mean = cv::v_min(one, (c[0] + c[1] + c[2]) * third);
+    cv::v_store_aligned(sigma_index, cv::v_trunc(mean * s255));
+    for (int j = 0; j < 4; ++j) sigma[j] = sigma_lut_[static_cast<std::size_t>(sigma_index[j])];
+    const cv::v_float32x4 sg = cv::v_load_aligned(sigma);
+    for (int k = 0; k < 3; ++k) {
+      const cv::v_float32x4 v = cv::v_min(cv::v_max(c[k] + sg * n[k], zero), one);
+      cv::v_store_aligned(gamma_index[k], cv::v_trunc(v * scale + half));
+    }
+    for (int j = 0; j < 4; ++j)
+      for (int k = 0; k < 3; ++k) out[x + j][k] = gamma_lut_[static_cast<std::size_t>(gamma_index[k][j])];
+  }
+#endif
+  for (; x < W; ++x) {
+    const cv::Vec3f c = in[x] * gain[x];
+    const float mean = std::min(1.0f, (c[0] + c[1] + c[2]) * (1.0f / 3.0f));
+    const float sigma_x = sigma_lut_[static_cast<std::size_t>(mean * 255.0f)];
+    for (int k = 0; k < 3; ++k) {
+      const float v = std::clamp(c[k] + sigma_x * noise[3 * x + k], 0.0f, 1.0f);
+      out[x][k] = gamma_lut_[static_cast<std::size_t>(v * lut_scale + 0.5f)];
     }
   }
 }
