@@ -113,20 +113,9 @@ struct LiveLoop {
   }
 
   void record(const LiveFrame& in, const TrackResult& r, double latency_ms) {
-    FrameRow row;
-    row.record.frame = in.frame.index;
-    row.record.timestamp_s = static_cast<double>(in.t_sensor_ns - t_first_sensor_ns) * 1e-9;
-    row.record.state = frame_state(r.state);
-    row.record.inliers = r.inliers;
-    row.record.latency_ms = latency_ms;
-    row.pose_valid = r.pose_valid && r.T_camera_model.all_finite();
-    if (row.pose_valid) row.T_model_camera = r.T_camera_model.inverse();
+    const double timestamp_s = static_cast<double>(in.t_sensor_ns - t_first_sensor_ns) * 1e-9;
+    const FrameRow row = record_frame(in.frame.index, timestamp_s, r, latency_ms, &stats);
     latency.add(latency_ms);
-    ++stats.frames;
-    stats.tracked += row.pose_valid ? 1 : 0;
-    stats.lost += r.state == TrackState::kLost ? 1 : 0;
-    stats.relocalised += r.state == TrackState::kRelocalised ? 1 : 0;
-    stats.initialised += r.state == TrackState::kInitialised ? 1 : 0;
     status->frames.store(stats.frames, std::memory_order_relaxed);
     status->tracked.store(stats.tracked, std::memory_order_relaxed);
     status->lost.store(stats.lost, std::memory_order_relaxed);

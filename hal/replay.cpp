@@ -22,6 +22,24 @@ FrameState frame_state(TrackState s) {
   return FrameState::kLost;
 }
 
+FrameRow record_frame(int frame, double timestamp_s, const TrackResult& r, double latency_ms,
+                      ReplayStats* stats) {
+  FrameRow row;
+  row.record.frame = frame;
+  row.record.timestamp_s = timestamp_s;
+  row.record.state = frame_state(r.state);
+  row.record.inliers = r.inliers;
+  row.record.latency_ms = latency_ms;
+  row.pose_valid = r.pose_valid && r.T_camera_model.all_finite();
+  if (row.pose_valid) row.T_model_camera = r.T_camera_model.inverse();
+  ++stats->frames;
+  stats->tracked += row.pose_valid ? 1 : 0;
+  stats->lost += r.state == TrackState::kLost ? 1 : 0;
+  stats->initialised += r.state == TrackState::kInitialised ? 1 : 0;
+  stats->relocalised += r.state == TrackState::kRelocalised ? 1 : 0;
+  return row;
+}
+
 namespace {
 
 std::string json_escaped(const std::string& s) {
@@ -77,20 +95,8 @@ struct TrackingLoop {
   }
 
   void record(int index, const TrackResult& r, double latency_ms) {
-    FrameRow row;
-    row.record.frame = index;
-    row.record.timestamp_s = fps > 0 ? index / fps : 0.0;
-    row.record.state = frame_state(r.state);
-    row.record.inliers = r.inliers;
-    row.record.latency_ms = latency_ms;
-    row.pose_valid = r.pose_valid && r.T_camera_model.all_finite();
-    if (row.pose_valid) row.T_model_camera = r.T_camera_model.inverse();
+    const FrameRow row = record_frame(index, fps > 0 ? index / fps : 0.0, r, latency_ms, &stats);
     latency.add(latency_ms);
-    ++stats.frames;
-    stats.tracked += row.pose_valid ? 1 : 0;
-    stats.lost += r.state == TrackState::kLost ? 1 : 0;
-    stats.initialised += r.state == TrackState::kInitialised ? 1 : 0;
-    stats.relocalised += r.state == TrackState::kRelocalised ? 1 : 0;
     if (writer->push(row)) ++stats.writer_stalls;
   }
 };

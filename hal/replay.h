@@ -22,6 +22,7 @@
 #include "core/image.h"
 #include "core/result.h"
 #include "core/tracker.h"
+#include "hal/run_writer.h"
 #include "hal/sequence_loader.h"
 #include "hal/y4m_reader.h"
 
@@ -87,6 +88,12 @@ std::string format_replay_summary(const ReplayStats& stats, const ReplayOptions&
 
 // The tracker's state as frames.csv spells it (also used by live capture).
 FrameState frame_state(TrackState s);
+
+// One frame's result as the writer's row (the pose only when valid and
+// finite), counted into stats (frames, tracked, lost, ...). Shared by the
+// replay and the live camera loop; allocates nothing.
+FrameRow record_frame(int frame, double timestamp_s, const TrackResult& r, double latency_ms,
+                      ReplayStats* stats);
 
 // Frames in a Y4M file estimated from its size (0 for a pipe or unknown).
 int estimate_frame_count(const LoadedSequence& sequence);

@@ -6,11 +6,11 @@
 
 #include <cstdlib>
 #include <fstream>
-#include <sys/wait.h>
 
 #include "core/sequence.h"
 #include "hal/file_io.h"
 #include "hal/sequence_loader.h"
+#include "support/shell.h"
 #include "support/support.h"
 #include "tools/eval/eval_report.h"
 
@@ -18,31 +18,21 @@ using namespace st;
 
 namespace {
 
-// Runs a command line through the shell; its exit status (-1 if it did not exit).
-int run(const std::string& cmd) {
-  const int status = std::system(cmd.c_str());
-  return status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-// A path quoted for the shell (built by appends: GCC 12 warns falsely on "'" + s).
-std::string q(const std::filesystem::path& p) {
-  std::string out(1, '\'');
-  out.append(p.string());
-  out.push_back('\'');
-  return out;
-}
-std::string bin(const std::string& name) { return q(test::bin_dir() / name); }
-
 void simulate(const std::filesystem::path& dir, int frames, const std::string& size, int seed) {
-  const std::string cmd = bin("scopetrack-sim") + " --scenario orbit --frames " + std::to_string(frames) + " --size " +
-                          size + " --seed " + std::to_string(seed) + " --out " + q(dir) + " > /dev/null";
-  REQUIRE_MESSAGE(run(cmd) == 0, cmd);
+  const std::string cmd = test::bin_command("scopetrack-sim") + " --scenario orbit --frames " +
+                          std::to_string(frames) + " --size " + size + " --seed " +
+                          std::to_string(seed) + " --out " + test::shell_quoted(dir) +
+                          " > /dev/null";
+  REQUIRE_MESSAGE(test::run_shell(cmd) == 0, cmd);
 }
 
 // scopetrack --sequence SEQ --out OUT; stderr goes to OUT/../NAME.stderr.
-int track(const std::filesystem::path& seq, const std::filesystem::path& out, std::string* stderr_text) {
+int track(const std::filesystem::path& seq, const std::filesystem::path& out,
+          std::string* stderr_text) {
   const auto err = out.parent_path() / (out.filename().string() + ".stderr");
-  const int code = run(bin("scopetrack") + " --sequence " + q(seq) + " --out " + q(out) + " > /dev/null 2> " + q(err));
+  const int code = test::run_shell(test::bin_command("scopetrack") + " --sequence " +
+                                   test::shell_quoted(seq) + " --out " + test::shell_quoted(out) +
+                                   " > /dev/null 2> " + test::shell_quoted(err));
   *stderr_text = test::read_file_bytes(err);
   return code;
 }
@@ -63,8 +53,9 @@ int data_lines(const std::filesystem::path& p) {
 }  // namespace
 
 // Issue 6's end-to-end gate: init ok, lost 0, median TRE < 2 px, no wrong pose.
-TEST_CASE("app_e2e: simulate 150 frames, track, evaluate: init ok, no frame lost, median TRE < 2 px" *
-          doctest::timeout(test::budget_s(300))) {
+TEST_CASE(
+    "app_e2e: simulate 150 frames, track, evaluate: init ok, no frame lost, median TRE < 2 px" *
+    doctest::timeout(test::budget_s(300))) {
   const auto dir = test::scratch_dir("app_e2e_orbit");
   simulate(dir / "seq", 150, "480x270", 2);
   std::string err;
@@ -95,21 +86,24 @@ TEST_CASE("app_e2e: 200 simulated frames replay with zero heap allocations on th
   CHECK(data_lines(dir / "out" / "frames.csv") == 201);
 }
 
-TEST_CASE("app_e2e: a video cut mid-frame ends with exit 1, a message naming the frame, output intact" *
-          doctest::timeout(test::budget_s(120))) {
+TEST_CASE(
+    "app_e2e: a video cut mid-frame ends with exit 1, a message naming the frame, output intact" *
+    doctest::timeout(test::budget_s(120))) {
   const auto dir = test::scratch_dir("app_e2e_cut");
   simulate(dir / "seq", 40, "320x180", 7);
   const auto seq = load_sequence(dir / "seq");
   REQUIRE(seq.ok());
   const std::size_t record = seq->video_header.frame_bytes() + 6;
-  std::filesystem::resize_file(dir / "seq" / "video.y4m", seq->video_header.header_bytes + 30 * record + record / 2);
+  std::filesystem::resize_file(dir / "seq" / "video.y4m",
+                               seq->video_header.header_bytes + 30 * record + record / 2);
   std::string err;
   CHECK(track(dir / "seq", dir / "out", &err) == 1);
   CHECK(err.find("frame 30 is truncated") != std::string::npos);
   MESSAGE(err);
   CHECK(data_lines(dir / "out" / "frames.csv") == 31);  // header + frames 0..29
   CHECK(summary_number(dir / "out", "frames") == 30);
-  CHECK(test::read_file_bytes(dir / "out" / "summary.json").find("\"error\": \"") != std::string::npos);
+  CHECK(test::read_file_bytes(dir / "out" / "summary.json").find("\"error\": \"") !=
+        std::string::npos);
   auto report = evaluate_run(dir / "seq", dir / "out");  // what was written is usable
   REQUIRE_MESSAGE(report.ok(), (report.ok() ? std::string() : report.message()));
   CHECK(report->frames_in_csv == 30);
@@ -126,7 +120,8 @@ TEST_CASE("app_e2e: sequences --check refuses are refused before tracking with a
     SequenceConfig c = config.value();
     c.T_camera_model_init = SE3(Mat3::Identity(), Vec3(0, 0, -2000));
     REQUIRE(write_sequence_files(dir / "seq", c).ok());
-    CHECK(run(bin("scopetrack") + " --check " + q(dir / "seq") + " > /dev/null") == 1);
+    CHECK(test::run_shell(test::bin_command("scopetrack") + " --check " +
+                          test::shell_quoted(dir / "seq") + " > /dev/null") == 1);
     std::string err;
     CHECK(track(dir / "seq", dir / "out", &err) == 1);
     CHECK(err.find("not usable") != std::string::npos);
@@ -140,7 +135,9 @@ TEST_CASE("app_e2e: sequences --check refuses are refused before tracking with a
     CHECK(err.find("does not exist") != std::string::npos);
   }
   SUBCASE("bad command line") {
-    CHECK(run(bin("scopetrack") + " --sequence " + q(dir / "seq") + " 2> /dev/null") == 2);  // no --out
-    CHECK(run(bin("scopetrack") + " --sequence " + q(dir / "seq") + " --out x --fast 2> /dev/null") == 2);
+    CHECK(test::run_shell(test::bin_command("scopetrack") + " --sequence " +
+                          test::shell_quoted(dir / "seq") + " 2> /dev/null") == 2);  // no --out
+    CHECK(test::run_shell(test::bin_command("scopetrack") + " --sequence " +
+                          test::shell_quoted(dir / "seq") + " --out x --fast 2> /dev/null") == 2);
   }
 }

@@ -6,11 +6,11 @@
 #include <doctest/doctest.h>
 
 #include <cstdlib>
-#include <sys/wait.h>
 
 #include "core/sequence.h"
 #include "hal/file_io.h"
 #include "hal/libcamera_capture.h"
+#include "support/shell.h"
 #include "support/support.h"
 
 using namespace st;
@@ -38,17 +38,6 @@ T_camera_model_init: !!opencv-matrix
    dt: d
    data: [ 1., 0., 0., 5., 0., 1., 0., -3., 0., 0., 1., 180., 0., 0., 0., 1. ]
 )";
-
-int run(const std::string& cmd) {
-  const int status = std::system(cmd.c_str());
-  return status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-std::string q(const std::filesystem::path& p) {
-  std::string out(1, '\'');
-  out.append(p.string());
-  out.push_back('\'');
-  return out;
-}
 
 }  // namespace
 
@@ -79,12 +68,14 @@ TEST_CASE("libcamera calibration: bad files name the calibration file and the ke
   text.replace(text.find("460., 0., 322.5"), 15, "460., 1., 322.5");  // skew
   auto r = parse_calibration_yaml(text);
   REQUIRE(!r.ok());
-  CHECK(r.message().find("calibration file: camera_matrix must be [fx 0 cx; 0 fy cy; 0 0 1]") != std::string::npos);
+  CHECK(r.message().find("calibration file: camera_matrix must be [fx 0 cx; 0 fy cy; 0 0 1]") !=
+        std::string::npos);
   text = kCalibration;
   text.replace(text.find("1., 0., 0., 5."), 14, "2., 0., 0., 5.");  // scale in the rotation
   r = parse_calibration_yaml(text);
   REQUIRE(!r.ok());
-  CHECK(r.message().find("calibration file: T_camera_model_init is not rigid") != std::string::npos);
+  CHECK(r.message().find("calibration file: T_camera_model_init is not rigid") !=
+        std::string::npos);
   CHECK(!parse_calibration_yaml("").ok());
   CHECK(!parse_calibration_yaml("image_width: 640\nimage_height: 360\n").ok());  // no camera_matrix
   CHECK(!parse_calibration_yaml("\x01\x02garbage").ok());
@@ -92,7 +83,8 @@ TEST_CASE("libcamera calibration: bad files name the calibration file and the ke
 
 TEST_CASE("libcamera capture: the listing message says what was found") {
   CHECK(describe_cameras({"0.0.3", {}}) == "no camera found (libcamera 0.0.3 found 0 cameras)");
-  CHECK(describe_cameras({"0.0.3", {"/base/i2c@1/imx219@10"}}) == "libcamera 0.0.3 found 1 camera: '/base/i2c@1/imx219@10'");
+  CHECK(describe_cameras({"0.0.3", {"/base/i2c@1/imx219@10"}}) ==
+        "libcamera 0.0.3 found 1 camera: '/base/i2c@1/imx219@10'");
   CHECK(describe_cameras({"0.0.3", {"a", "b"}}) == "libcamera 0.0.3 found 2 cameras: 'a' 'b'");
 }
 
@@ -105,7 +97,8 @@ TEST_CASE("libcamera capture: no camera attached -> open() refuses and says what
   const Status s = capture.open({"no-such-camera", 640, 360, 4});
   REQUIRE(!s.ok());
   if (listing->ids.empty())
-    CHECK(s.message() == "no camera found (libcamera " + listing->libcamera_version + " found 0 cameras)");
+    CHECK(s.message() ==
+          "no camera found (libcamera " + listing->libcamera_version + " found 0 cameras)");
   else
     CHECK(s.message().find("camera 'no-such-camera' not found") != std::string::npos);
   CHECK(!capture.start().ok());  // not opened
@@ -115,33 +108,42 @@ TEST_CASE("libcamera capture: no camera attached -> open() refuses and says what
   CHECK(capture.open({"x", 640, 360, 1}).message().find("2..32 buffers") != std::string::npos);
 }
 
-TEST_CASE("libcamera capture: scopetrack --camera / --list-cameras without a camera exit non-zero and say why") {
+TEST_CASE(
+    "libcamera capture: scopetrack --camera / --list-cameras without a camera exit non-zero and "
+    "say why") {
   const auto dir = test::scratch_dir("libcamera_app");
   REQUIRE(write_file(dir / "calibration.yaml", kCalibration).ok());
   REQUIRE(write_file(dir / "bad.yaml", "image_width: 640\n").ok());
-  const std::string app = q(test::bin_dir() / "scopetrack");
-  const std::string mesh = q(test::shared_data("liver/liver.ply"));
+  const std::string app = test::shell_quoted(test::bin_dir() / "scopetrack");
+  const std::string mesh = test::shell_quoted(test::shared_data("liver/liver.ply"));
   auto listing = list_cameras();
   REQUIRE(listing.ok());
   if (!listing->ids.empty()) {
     MESSAGE("a camera is attached: the no-camera checks are skipped");
     return;
   }
-  const std::string no_camera = "no camera found (libcamera " + listing->libcamera_version + " found 0 cameras)";
-  CHECK(run(app + " --camera cam0 --mesh " + mesh + " --calibration " + q(dir / "calibration.yaml") + " --out " +
-            q(dir / "out") + " > /dev/null 2> " + q(dir / "camera.err")) == 1);
+  const std::string no_camera =
+      "no camera found (libcamera " + listing->libcamera_version + " found 0 cameras)";
+  CHECK(test::run_shell(app + " --camera cam0 --mesh " + mesh + " --calibration " +
+                        test::shell_quoted(dir / "calibration.yaml") + " --out " +
+                        test::shell_quoted(dir / "out") + " > /dev/null 2> " +
+                        test::shell_quoted(dir / "camera.err")) == 1);
   CHECK(test::read_file_bytes(dir / "camera.err").find(no_camera) != std::string::npos);
-  CHECK(run(app + " --list-cameras > " + q(dir / "list.out") + " 2> " + q(dir / "list.err")) == 1);
+  CHECK(test::run_shell(app + " --list-cameras > " + test::shell_quoted(dir / "list.out") + " 2> " +
+                        test::shell_quoted(dir / "list.err")) == 1);
   CHECK(test::read_file_bytes(dir / "list.err").find(no_camera) != std::string::npos);
   CHECK(test::read_file_bytes(dir / "list.out").empty());
   // Files are checked before the camera: their errors come first.
-  CHECK(run(app + " --camera cam0 --mesh " + mesh + " --calibration " + q(dir / "bad.yaml") + " > /dev/null 2> " +
-            q(dir / "bad.err")) == 1);
+  CHECK(test::run_shell(app + " --camera cam0 --mesh " + mesh + " --calibration " +
+                        test::shell_quoted(dir / "bad.yaml") + " > /dev/null 2> " +
+                        test::shell_quoted(dir / "bad.err")) == 1);
   CHECK(test::read_file_bytes(dir / "bad.err").find("calibration file") != std::string::npos);
-  CHECK(run(app + " --camera cam0 --mesh " + q(dir / "missing.ply") + " --calibration " +
-            q(dir / "calibration.yaml") + " > /dev/null 2>&1") == 1);
+  CHECK(test::run_shell(app + " --camera cam0 --mesh " + test::shell_quoted(dir / "missing.ply") +
+                        " --calibration " + test::shell_quoted(dir / "calibration.yaml") +
+                        " > /dev/null 2>&1") == 1);
   // A bad command line: exit 2.
-  CHECK(run(app + " --camera cam0 --mesh " + mesh + " > /dev/null 2>&1") == 2);
-  CHECK(run(app + " --camera --mesh " + mesh + " --calibration x > /dev/null 2>&1") == 2);
-  CHECK(run(app + " --list-cameras extra > /dev/null 2>&1") == 2);
+  CHECK(test::run_shell(app + " --camera cam0 --mesh " + mesh + " > /dev/null 2>&1") == 2);
+  CHECK(test::run_shell(app + " --camera --mesh " + mesh + " --calibration x > /dev/null 2>&1") ==
+        2);
+  CHECK(test::run_shell(app + " --list-cameras extra > /dev/null 2>&1") == 2);
 }
