@@ -96,4 +96,28 @@ bool shape_cost(const ClosestPointIndex& surface, double sqrt_w, const double* f
   return true;
 }
 
+bool shape_plane(const ClosestPointIndex& surface, const Vec3& f0, ShapePlane* plane) {
+  SurfacePoint s;
+  if (!surface.closest(f0, &s)) return false;
+  plane->foot = s.p_model;
+  plane->normal = s.face_normal;
+  if (s.feature != SurfaceFeature::kFace && s.distance_mm > 1e-9) {
+    plane->normal = (f0 - s.p_model) / s.distance_mm;
+    if (plane->normal.dot(s.face_normal) < 0) plane->normal = -plane->normal;  // keep the outward sense
+  }
+  return true;
+}
+
+void plane_cost(const ShapePlane& plane, double sqrt_w, const double* f, double* r, double* J) {
+  const Vec3 d(f[0] - plane.foot.x(), f[1] - plane.foot.y(), f[2] - plane.foot.z());
+  r[0] = sqrt_w * plane.normal.dot(d);
+  r[1] = 0.0;
+  if (J) {
+    for (int k = 0; k < 3; ++k) {
+      J[k] = sqrt_w * plane.normal[k];
+      J[3 + k] = 0.0;
+    }
+  }
+}
+
 }  // namespace st

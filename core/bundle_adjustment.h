@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "core/ba_job.h"
+#include "core/ba_residuals.h"
 #include "core/camera.h"
 #include "core/closest_point.h"
 #include "core/mesh.h"
@@ -29,6 +30,8 @@ namespace st {
 struct BundleAdjusterOptions {
   double w_shape = 100.0;           // paper: 100; 0 drops the shape residual (ablation)
   double shape_huber_mm = 1.0;      // Huber threshold of the point-to-mesh distance
+  bool exact_shape = false;         // true: D(f) re-queried at every evaluation; false: tangent
+                                    // plane at the start value (core/ba_residuals.h)
   double reprojection_huber = 2.447651936;  // on whitened pixels: sqrt(chi2 95%, 2 DoF)
   int max_iterations = 10;
   double max_time_s = 0.05;         // Ceres stops after this much solver time
@@ -63,13 +66,15 @@ class BundleAdjuster {
   struct Impl;  // the Ceres objects (kept out of this header: glog macros)
   bool valid(const BaJob& job) const;
   int build(BaJob* job);
+  void add_shape_residuals(BaJob* job);
   void finish(BaJob* job, double initial_cost, double final_cost, double total_s, int iterations, bool usable);
 
   BundleAdjusterOptions options_;
   Pinhole K_;
   ClosestPointIndex surface_;
   std::unique_ptr<Impl> impl_;
-  std::vector<std::uint8_t> point_observed_;  // per job point: has a reprojection residual
+  std::vector<std::uint8_t> point_observed_;
+  std::vector<ShapePlane> planes_;  // per job point: tangent plane at the start value  // per job point: has a reprojection residual
   int max_points_ = 0, max_observations_ = 0;
   bool configured_ = false;
 };

@@ -52,18 +52,13 @@ Mat3 SurfacePoint::residual_jacobian() const {
   return Mat3::Identity();
 }
 
-// Voronoi regions of the triangle in the order vertex a, b, edge ab,
-// vertex c, edge ac, edge bc, face (barycentric tests as in Ericson,
-// Real-Time Collision Detection, 5.1.5, re-derived here).
-SurfacePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+namespace {
+
+// Voronoi regions of a non-degenerate triangle in the order vertex a, b,
+// edge ab, vertex c, edge ac, edge bc, face (barycentric tests as in
+// Ericson, Real-Time Collision Detection, 5.1.5, re-derived here).
+SurfacePoint closest_by_region(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& n) {
   const Vec3 ab = b - a, ac = c - a, ap = p - a;
-  const Vec3 n = ab.cross(ac);
-  if (!(n.squaredNorm() > 1e-24 * std::max(1.0, ab.squaredNorm() * ac.squaredNorm()))) {
-    SurfacePoint best = closest_on_segment(p, a, b);
-    for (const SurfacePoint& s : {closest_on_segment(p, a, c), closest_on_segment(p, b, c)})
-      if (s.distance_mm < best.distance_mm) best = s;
-    return best;
-  }
   const double d1 = ab.dot(ap), d2 = ac.dot(ap);
   if (d1 <= 0 && d2 <= 0) return at_vertex(p, a);
   const Vec3 bp = p - b;
@@ -83,7 +78,23 @@ SurfacePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3&
   s.p_model = a + ab * (vb * denom) + ac * (vc * denom);
   s.distance_mm = (p - s.p_model).norm();
   s.feature = SurfaceFeature::kFace;
-  s.axis = n.normalized();
+  s.axis = n;
+  return s;
+}
+
+}  // namespace
+
+SurfacePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a;
+  const Vec3 n = ab.cross(ac);
+  if (!(n.squaredNorm() > 1e-24 * std::max(1.0, ab.squaredNorm() * ac.squaredNorm()))) {
+    SurfacePoint best = closest_on_segment(p, a, b);
+    for (const SurfacePoint& s : {closest_on_segment(p, a, c), closest_on_segment(p, b, c)})
+      if (s.distance_mm < best.distance_mm) best = s;
+    return best;  // face_normal stays +z: a degenerate triangle has none
+  }
+  SurfacePoint s = closest_by_region(p, a, b, c, n.normalized());
+  s.face_normal = n.normalized();
   return s;
 }
 

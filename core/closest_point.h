@@ -32,6 +32,7 @@ struct SurfacePoint {
   int triangle = -1;            // mesh triangle index
   SurfaceFeature feature = SurfaceFeature::kFace;
   Vec3 axis = Vec3::UnitZ();    // face: unit normal (winding order); edge: unit edge direction
+  Vec3 face_normal = Vec3::UnitZ();  // the triangle's unit normal (winding order), any feature
   // d(f - D(f)) / df: the projector onto the normal space of the feature.
   Mat3 residual_jacobian() const;
 };

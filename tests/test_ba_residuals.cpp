@@ -150,3 +150,39 @@ TEST_CASE("ba residuals: shape cost is sqrt(w) (f - D(f)), w = 100, with a Jacob
   CHECK_FALSE(shape_cost(none, 10.0, f.data(), r, nullptr));
   CHECK_FALSE(shape_cost(index, 10.0, Vec3(std::nan(""), 0, 0).data(), r, nullptr));
 }
+
+TEST_CASE("ba residuals: tangent-plane shape cost, its Jacobian (central differences) and its foot point") {
+  const Mesh mesh = load_liver_for_tracking();
+  ClosestPointIndex index;
+  REQUIRE(index.configure(mesh).ok());
+  std::mt19937 rng(6);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int trial = 0; trial < 50; ++trial) {
+    const int v = static_cast<int>(u(rng) * (mesh.vertex_count() - 1));
+    const Vec3 f0 = mesh.vertex(v) + 2.0 * u(rng) * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized();
+    ShapePlane plane;
+    REQUIRE(shape_plane(index, f0, &plane));
+    SurfacePoint s;
+    REQUIRE(index.closest(f0, &s));
+    CHECK(std::abs(plane.normal.norm() - 1.0) < 1e-9);
+    double r[2], J[6];
+    plane_cost(plane, 10.0, f0.data(), r, J);
+    // At the start value the plane residual is the distance to the mesh.
+    CHECK(std::abs(r[0]) == doctest::Approx(10.0 * s.distance_mm).epsilon(1e-6).scale(1e-9));
+    CHECK(r[1] == 0.0);
+    const double h = 1e-6;
+    for (int k = 0; k < 3; ++k) {
+      Vec3 fp = f0, fm = f0;
+      fp[k] += h;
+      fm[k] -= h;
+      double rp[2], rm[2];
+      plane_cost(plane, 10.0, fp.data(), rp, nullptr);
+      plane_cost(plane, 10.0, fm.data(), rm, nullptr);
+      CHECK((rp[0] - rm[0]) / (2 * h) == doctest::Approx(J[k]).epsilon(1e-6).scale(1));
+      CHECK(J[3 + k] == 0.0);
+    }
+  }
+  const ClosestPointIndex none;
+  ShapePlane plane;
+  CHECK_FALSE(shape_plane(none, Vec3::Zero(), &plane));
+}
