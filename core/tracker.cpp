@@ -70,9 +70,9 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
     return err("search radii must be positive and wide_radius_px >= search_radius_px");
   if (c.max_hamming < 1 || c.max_hamming > 256) return err("max_hamming outside [1, 256]");
   if (!(c.w_shape >= 0) || !std::isfinite(c.w_shape) || c.ba_window_keyframes < 2 ||
-      c.ba_window_keyframes > c.max_keyframes || c.ba_max_iterations < 1 || c.ba_global_max_iterations < 1 ||
+      c.ba_window_keyframes > kMaxKeyframes || c.ba_max_iterations < 1 || c.ba_global_max_iterations < 1 ||
       !(c.ba_max_time_s > 0) || !(c.ba_global_max_time_s > 0) || c.ba_max_observations < 1)
-    return err("bundle adjustment settings out of range (w_shape >= 0, window in [2, max_keyframes], limits > 0)");
+    return err("bundle adjustment settings out of range (w_shape >= 0, window in [2, kMaxKeyframes], limits > 0)");
   if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
       c.min_spread_cells < 0 || c.min_spread_cells > 16)
     return err("relocalisation settings out of range");
@@ -158,6 +158,7 @@ void TrackerImpl::start() {
   ref_keyframe_ = -1;
   reloc_cursor_ = 0;
   ba_window_pending_ = ba_global_pending_ = false;
+  ba_min_version_ = ba_version_ + 1;  // a job still out refers to the map just cleared
 }
 
 TrackResult TrackerImpl::step(GrayView luma, int frame_index) {

@@ -76,7 +76,7 @@ struct TrackerConfig {
   // given to Tracker::set_ba_channel(); without one there is no BA.
   bool use_ba = true;                   // false: --no-ba ablation (no jobs handed out)
   double w_shape = 100.0;               // shape residual weight (paper: 100); 0: --no-shape-ba
-  int ba_window_keyframes = 8;          // newest keyframes optimised by a window BA
+  int ba_window_keyframes = 8;          // newest keyframes optimised by a window BA (<= max_keyframes used)
   int ba_max_iterations = 10;           // window BA
   double ba_max_time_s = 0.03;
   bool ba_global_after_reloc = true;    // a global BA over all keyframes after a relocalisation

@@ -18,7 +18,7 @@ bool TrackerImpl::apply_ba() {
   if (!ba_channel_) return false;
   const BaJob* job = ba_channel_->solved_job();
   if (!job) return false;
-  const bool usable = job->summary.usable;
+  const bool usable = job->summary.usable && job->version >= ba_min_version_;
   if (usable) {
     for (int i = 0; i < job->keyframe_count; ++i) {
       const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];

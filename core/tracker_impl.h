@@ -132,7 +132,8 @@ class TrackerImpl {
   // Bundle adjustment: jobs go out through ba_channel_ (not owned).
   BaChannel* ba_channel_ = nullptr;
   bool ba_window_pending_ = false, ba_global_pending_ = false;
-  std::uint32_t ba_version_ = 0;
+  std::uint32_t ba_version_ = 0;      // of the last job handed out (never reset)
+  std::uint32_t ba_min_version_ = 0;  // jobs below this came from before start(): not applied
   std::vector<std::int32_t> ba_point_index_;     // per map point slot: its index in the job being filled
   std::vector<std::int32_t> ba_keyframe_index_;  // per keyframe slot: likewise
   std::vector<std::int32_t> ba_order_;           // keyframe slots, newest first
