@@ -46,6 +46,7 @@ struct KeyframeLink {
   std::int32_t point = -1;  // map point id
   std::int32_t point_created_frame = -1;  // the link is stale if the slot was reused since
   float x = 0.f, y = 0.f;   // level-0 (distorted) pixel
+  float x_ideal = 0.f, y_ideal = 0.f;  // the same, undistorted (bundle adjustment)
   float angle_deg = 0.f;
   std::int16_t octave = 0;
 };

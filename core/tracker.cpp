@@ -69,6 +69,10 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
   if (!(c.search_radius_px > 0.f) || !(c.wide_radius_px >= c.search_radius_px) || !(c.refine_radius_px > 0.f))
     return err("search radii must be positive and wide_radius_px >= search_radius_px");
   if (c.max_hamming < 1 || c.max_hamming > 256) return err("max_hamming outside [1, 256]");
+  if (!(c.w_shape >= 0) || !std::isfinite(c.w_shape) || c.ba_window_keyframes < 2 ||
+      c.ba_window_keyframes > kMaxKeyframes || c.ba_max_iterations < 1 || c.ba_global_max_iterations < 1 ||
+      !(c.ba_max_time_s > 0) || !(c.ba_global_max_time_s > 0) || c.ba_max_observations < 1)
+    return err("bundle adjustment settings out of range (w_shape >= 0, window in [2, kMaxKeyframes], limits > 0)");
   if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
       c.min_spread_cells < 0 || c.min_spread_cells > 16)
     return err("relocalisation settings out of range");
@@ -129,6 +133,9 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   projected_.assign(np, ProjectedPoint{});
   match_of_point_.assign(np, -1);
   dist_of_point_.assign(np, 0);
+  ba_point_index_.assign(np, -1);
+  ba_keyframe_index_.assign(static_cast<std::size_t>(config.max_keyframes), -1);
+  ba_order_.assign(static_cast<std::size_t>(config.max_keyframes), -1);
   octave_info_.assign(static_cast<std::size_t>(kMaxPyramidLevels), 1.0);
   octave_scale_.assign(static_cast<std::size_t>(kMaxPyramidLevels), 1.f);
   for (int o = 0; o < kMaxPyramidLevels; ++o) {
@@ -150,6 +157,8 @@ void TrackerImpl::start() {
   lost_frames_ = strict_frames_left_ = 0;
   ref_keyframe_ = -1;
   reloc_cursor_ = 0;
+  ba_window_pending_ = ba_global_pending_ = false;
+  ba_min_version_ = ba_version_ + 1;  // a job still out refers to the map just cleared
 }
 
 TrackResult TrackerImpl::step(GrayView luma, int frame_index) {
@@ -160,6 +169,7 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index) {
     r.keyframes = map_.keyframe_count();
     return r;  // defined degraded state: lost, no pose
   }
+  const bool ba_applied = apply_ba();  // safe point: nothing of this frame uses the map yet
   valid_view_ = valid_mask_.build(luma);
   const double t_valid = now_ms();
   if (!initialised_) {
@@ -169,7 +179,12 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index) {
   } else {
     r = track(luma, frame_index);
   }
-  r.times_ms[static_cast<int>(Stage::kPyramid)] += t_valid - t0;  // valid mask
+  r.times_ms[static_cast<int>(Stage::kPyramid)] += t_valid - t0;  // valid mask (and BA apply)
+  if (r.keyframe) ba_window_pending_ = true;
+  if (r.state == TrackState::kRelocalised && config_.ba_global_after_reloc) ba_global_pending_ = true;
+  if (r.state == TrackState::kInitialised) ba_window_pending_ = ba_global_pending_ = false;  // a fresh map
+  r.ba_applied = ba_applied;
+  r.ba_submitted = submit_ba();
   r.map_points = map_.point_count();
   r.keyframes = map_.keyframe_count();
   if (config_.now_ns) r.times_ms[static_cast<int>(Stage::kTotal)] = now_ms() - t0;
@@ -208,6 +223,10 @@ Status Tracker::configure(const TrackerConfig& config, const Mesh& mesh, const C
     impl_ = nullptr;
   }
   return s;
+}
+
+void Tracker::set_ba_channel(BaChannel* channel) {
+  if (impl_) impl_->set_ba_channel(channel);
 }
 
 void Tracker::start() {

@@ -72,6 +72,17 @@ struct TrackerConfig {
   int strict_frames = 5;                // frames after relocalisation under strict gates
   double strict_inlier_factor = 1.5;    // min_inliers multiplier when strict
   int min_spread_cells = 3;             // strict: inliers must occupy this many cells of a 4x4 grid
+  // Bundle adjustment (core/bundle_adjustment.h), run by the mapping side
+  // given to Tracker::set_ba_channel(); without one there is no BA.
+  bool use_ba = true;                   // false: --no-ba ablation (no jobs handed out)
+  double w_shape = 100.0;               // shape residual weight (paper: 100); 0: --no-shape-ba
+  int ba_window_keyframes = 8;          // newest keyframes optimised by a window BA (<= max_keyframes used)
+  int ba_max_iterations = 10;           // window BA
+  double ba_max_time_s = 0.03;
+  bool ba_global_after_reloc = true;    // a global BA over all keyframes after a relocalisation
+  int ba_global_max_iterations = 15;
+  double ba_global_max_time_s = 0.2;
+  int ba_max_observations = 40000;      // observations per job (the job buffer's capacity)
   // Clock for stage timings (monotonic ns); nullptr: no timings.
   std::int64_t (*now_ns)() = nullptr;
 };
@@ -92,9 +103,12 @@ struct TrackResult {
   StageTimes times_ms{};
   double pose_jump_deg = 0, pose_jump_mm = 0;  // final pose vs the prediction (tracking)
   int local_map = 0;              // map points projected into the predicted view
+  bool ba_applied = false;        // a solved BA job was applied to the map at the start of this frame
+  bool ba_submitted = false;      // a BA job was handed to the mapping side this frame
 };
 
 class TrackerImpl;
+class BaChannel;
 
 class Tracker {
  public:
@@ -108,6 +122,9 @@ class Tracker {
   // the first frame given to step().
   Status configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
                    const SE3& T_camera_model_init);
+  // Optional mapping side for bundle adjustment (core/ba_channel.h); call
+  // after configure(), before start(); nullptr detaches. Not owned.
+  void set_ba_channel(BaChannel* channel);
   void start();
   // One frame: luma (Y plane, distorted image as captured, width x height).
   // Allocates nothing.

@@ -8,6 +8,7 @@
 #include <memory>
 #include <vector>
 
+#include "core/ba_channel.h"
 #include "core/camera.h"
 #include "core/feature_grid.h"
 #include "core/feature_set.h"
@@ -50,6 +51,7 @@ class TrackerImpl {
   void stop() { started_ = false; }
   TrackResult step(GrayView luma, int frame_index);
   const TrackingMap& map() const { return map_; }
+  void set_ba_channel(BaChannel* channel) { ba_channel_ = channel; }
 
  private:
   // Stages (tracker_track.cpp).
@@ -74,6 +76,12 @@ class TrackerImpl {
   TrackResult relocalise(GrayView luma, int frame_index);
   bool reloc_with_keyframe(int keyframe_id, PoseEstimate* e, TrackResult* r);
   void render_at(const SE3& T_camera_model);
+  // Bundle adjustment hand-off (tracker_ba.cpp).
+  bool apply_ba();
+  bool submit_ba();
+  int add_job_keyframe(BaJob* job, int keyframe_id, bool fixed);
+  void add_job_links(BaJob* job, int keyframe_id, int job_keyframe, bool add_points);
+  void fill_job(BaJob* job, bool global);
   double now_ms() const;
   void lap(Stage s, double* t_last_ms, TrackResult* r) const;
 
@@ -120,6 +128,15 @@ class TrackerImpl {
   int ref_keyframe_ = -1;
   int reloc_cursor_ = 0;
   SE3 T_last_keyframe_;
+
+  // Bundle adjustment: jobs go out through ba_channel_ (not owned).
+  BaChannel* ba_channel_ = nullptr;
+  bool ba_window_pending_ = false, ba_global_pending_ = false;
+  std::uint32_t ba_version_ = 0;      // of the last job handed out (never reset)
+  std::uint32_t ba_min_version_ = 0;  // jobs below this came from before start(): not applied
+  std::vector<std::int32_t> ba_point_index_;     // per map point slot: its index in the job being filled
+  std::vector<std::int32_t> ba_keyframe_index_;  // per keyframe slot: likewise
+  std::vector<std::int32_t> ba_order_;           // keyframe slots, newest first
 };
 
 }  // namespace st

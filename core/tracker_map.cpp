@@ -75,6 +75,8 @@ int TrackerImpl::add_keyframe(const SE3& T_camera_model, int frame_index, bool l
     l.point_created_frame = map_.point(point).created_frame;
     l.x = kp.x;
     l.y = kp.y;
+    l.x_ideal = static_cast<float>(kp_ideal_[static_cast<std::size_t>(k)].x());
+    l.y_ideal = static_cast<float>(kp_ideal_[static_cast<std::size_t>(k)].y());
     l.angle_deg = kp.angle_deg;
     l.octave = static_cast<std::int16_t>(kp.octave);
     return l;

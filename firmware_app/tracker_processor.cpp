@@ -2,11 +2,29 @@
 
 namespace st::app {
 
-Status TrackerProcessor::configure(const TrackerConfig& config, const Mesh& mesh,
-                                   const CameraModel& camera, const SE3& T_camera_model_init) {
+Status TrackerProcessor::configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
+                                   const SE3& T_camera_model_init) {
   stage_sum_ms_.fill(0.0);
   stage_runs_.fill(0);
-  return tracker_.configure(config, mesh, camera, T_camera_model_init);
+  ba_submitted_ = ba_applied_ = 0;
+  use_ba_ = false;
+  if (Status s = tracker_.configure(config, mesh, camera, T_camera_model_init); !s.ok()) return s;
+  if (config.use_ba) {
+    if (Status s = mapping_.configure(config, mesh, camera.pinhole()); !s.ok()) return s;
+    tracker_.set_ba_channel(&mapping_);
+    use_ba_ = true;
+  }
+  return Status::Ok();
+}
+
+void TrackerProcessor::start() {
+  if (use_ba_) mapping_.start();
+  tracker_.start();
+}
+
+void TrackerProcessor::stop() {
+  tracker_.stop();
+  if (use_ba_) mapping_.stop();
 }
 
 TrackResult TrackerProcessor::step(GrayView luma, int frame_index) {
@@ -16,6 +34,8 @@ TrackResult TrackerProcessor::step(GrayView luma, int frame_index) {
     stage_sum_ms_[i] += r.times_ms[i];
     ++stage_runs_[i];
   }
+  ba_submitted_ += r.ba_submitted ? 1 : 0;
+  ba_applied_ += r.ba_applied ? 1 : 0;
   return r;
 }
 
@@ -25,6 +45,10 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
     const std::string name = to_string(static_cast<Stage>(i));
     fields->emplace_back("stage_" + name + "_mean_ms", stage_sum_ms_[i] / static_cast<double>(stage_runs_[i]));
   }
+  if (!use_ba_) return;
+  fields->emplace_back("ba_jobs_submitted", static_cast<double>(ba_submitted_));
+  fields->emplace_back("ba_jobs_applied", static_cast<double>(ba_applied_));
+  mapping_.append_summary(fields);
 }
 
 }  // namespace st::app

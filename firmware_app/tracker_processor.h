@@ -1,13 +1,17 @@
 // The tracker as the replay's per-frame processor: st::Tracker behind
-// hal/replay.h's FrameProcessor, plus the mean stage times for summary.json.
+// hal/replay.h's FrameProcessor, with its mapping thread (bundle
+// adjustment, firmware_app/mapping_worker.h) when TrackerConfig::use_ba,
+// plus the mean stage times and BA counts for summary.json.
 // Threads: configure() on the owner; start/step/stop on the tracking thread
-// (step allocates nothing: the tracker's own guarantee, and fixed arrays here).
+// (step allocates nothing: the tracker's own guarantee, and fixed arrays
+// here); the mapping thread lives between start() and stop().
 #pragma once
 
 #include <array>
 #include <cstdint>
 
 #include "core/tracker.h"
+#include "firmware_app/mapping_worker.h"
 #include "hal/replay.h"
 
 namespace st::app {
@@ -16,16 +20,19 @@ class TrackerProcessor : public FrameProcessor {
  public:
   Status configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
                    const SE3& T_camera_model_init);
-  void start() override { tracker_.start(); }
+  void start() override;
   TrackResult step(GrayView luma, int frame_index) override;
-  void stop() override { tracker_.stop(); }
-  // "stage_<name>_mean_ms" for every stage that ran.
+  void stop() override;
+  // "stage_<name>_mean_ms" for every stage that ran, and the BA figures.
   void append_summary(std::vector<std::pair<std::string, double>>* fields) const override;
 
  private:
   Tracker tracker_;
+  MappingWorker mapping_;
+  bool use_ba_ = false;
   std::array<double, static_cast<int>(Stage::kCount)> stage_sum_ms_{};
   std::array<std::int64_t, static_cast<int>(Stage::kCount)> stage_runs_{};
+  std::int64_t ba_submitted_ = 0, ba_applied_ = 0;
 };
 
 }  // namespace st::app

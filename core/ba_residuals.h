@@ -1,0 +1,76 @@
+// The residuals of bundle adjustment (paper Eq. 4) and the pose manifold
+// they live on, as plain functions; core/bundle_adjustment.cpp wraps them
+// in Ceres cost functions and a ceres::Manifold (kept out of this header:
+// Ceres' headers bring glog's CHECK macros, which would clash with users'
+// own, e.g. doctest's).
+//
+// Pose block: T_camera_model as [qx qy qz qw tx ty tz] (core/ba_job.h).
+// Tangent [omega (rad); v (mm)] applied on the left, T <- exp(delta) * T,
+// as everywhere in the project (se3.h). The cost functions know the
+// left-perturbation Jacobian J (k x 6) in closed form (core/reprojection.h)
+// and report J * se3_minus_jacobian(x) as the ambient (k x 7) Jacobian:
+// Ceres multiplies that by se3_plus_jacobian(x) and gets back exactly J,
+// because MinusJacobian * PlusJacobian = I.
+//
+// Reprojection: sqrt(info) * (project(T * f) - q), info = 1/sigma^2 of the
+// keypoint's octave, so one Huber threshold (on whitened pixels) serves
+// every pyramid level.
+// Shape, two forms of |f - D(f)| (D the closest mesh point):
+// - exact: sqrt(w_shape) * (f - D(f)) with D queried at every evaluation.
+//   Its Jacobian is the exact derivative of f - D(f): the projector onto
+//   the normal space of the mesh feature holding D(f) (n n^T on a face).
+// - plane (the default in BA): sqrt(w_shape) * n . (f - D0), with the foot
+//   point D0 = D(f0) and the normal n taken once per solve at the start
+//   value f0; Jacobian sqrt(w_shape) n^T. A window moves points by a
+//   fraction of a mm, far below the organ's radius of curvature, so the
+//   tangent plane is the surface to first order, one closest-point query
+//   per point and solve instead of one per evaluation (the bench: 2x
+//   faster). The residual is padded with a zero second row so that every
+//   residual of a point has 2 rows: Ceres then uses its fixed-size Schur
+//   eliminator (2, 3, 6) instead of the dynamic one.
+// Why not "D(f) locally constant" with Jacobian I: that adds a tangential
+// stiffness pinning the point to its old foot point, which fights the
+// reprojection terms that should slide it along the surface; both forms
+// here penalise only the off-surface component.
+//
+// All functions allocate nothing; any thread.
+#pragma once
+
+#include "core/camera.h"
+#include "core/closest_point.h"
+#include "core/se3.h"
+
+namespace st {
+
+using Mat67 = Eigen::Matrix<double, 6, 7, Eigen::RowMajor>;
+using Mat76 = Eigen::Matrix<double, 7, 6, Eigen::RowMajor>;
+
+// x_plus_delta = exp(delta) * x (quaternion kept in x's hemisphere).
+bool se3_plus(const double* x, const double* delta, double* x_plus_delta);
+// y_minus_x = log(y * x^-1).
+bool se3_minus(const double* y, const double* x, double* y_minus_x);
+Mat76 se3_plus_jacobian(const double* x);   // d plus / d delta at delta = 0
+Mat67 se3_minus_jacobian(const double* x);  // a left inverse of se3_plus_jacobian
+
+// Whitened reprojection residual r (2) of point f (3) in pose x (7), with
+// the ambient Jacobians J_pose (2 x 7, row-major) and J_point (2 x 3), each
+// optional. False when the point is not in front (depth <= min_depth_mm).
+bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info, double min_depth_mm,
+                       const double* x, const double* f, double* r, double* J_pose, double* J_point);
+
+// Shape residual r (3) = sqrt_w (f - D(f)) and J (3 x 3, row-major, optional).
+// False when the index cannot answer (not configured, non-finite f).
+bool shape_cost(const ClosestPointIndex& surface, double sqrt_w, const double* f, double* r, double* J);
+
+// Tangent plane of the mesh at the closest point to f0: the foot point and
+// the unit normal (the face normal, or the direction f0 - foot when the
+// foot is on an edge or vertex and f0 is off the surface).
+struct ShapePlane {
+  Vec3 foot = Vec3::Zero();
+  Vec3 normal = Vec3::UnitZ();
+};
+bool shape_plane(const ClosestPointIndex& surface, const Vec3& f0, ShapePlane* plane);
+// r (2) = [sqrt_w n . (f - foot), 0], J (2 x 3, row-major, optional).
+void plane_cost(const ShapePlane& plane, double sqrt_w, const double* f, double* r, double* J);
+
+}  // namespace st

@@ -1,0 +1,279 @@
+#include "core/bundle_adjustment.h"
+
+#include <ceres/ceres.h>
+
+#include <cmath>
+#include <string>
+
+#include "core/capacity.h"
+#include "core/reprojection.h"
+
+namespace st {
+
+namespace {
+
+class Se3LeftManifold final : public ceres::Manifold {
+ public:
+  int AmbientSize() const override { return 7; }
+  int TangentSize() const override { return 6; }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    return se3_plus(x, delta, x_plus_delta);
+  }
+  bool PlusJacobian(const double* x, double* jacobian) const override {
+    Eigen::Map<Mat76> J(jacobian);
+    J = se3_plus_jacobian(x);
+    return true;
+  }
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    return se3_minus(y, x, y_minus_x);
+  }
+  bool MinusJacobian(const double* x, double* jacobian) const override {
+    Eigen::Map<Mat67> J(jacobian);
+    J = se3_minus_jacobian(x);
+    return true;
+  }
+};
+
+class ReprojectionCost final : public ceres::SizedCostFunction<2, 7, 3> {
+ public:
+  void set(const Pinhole& K, const Vec2& px_ideal, double info, double min_depth_mm) {
+    K_ = K;
+    px_ = px_ideal;
+    sqrt_info_ = std::sqrt(info);
+    min_depth_mm_ = min_depth_mm;
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    return reprojection_cost(K_, px_, sqrt_info_, min_depth_mm_, parameters[0], parameters[1], residuals,
+                             jacobians ? jacobians[0] : nullptr, jacobians ? jacobians[1] : nullptr);
+  }
+
+ private:
+  Pinhole K_;
+  Vec2 px_ = Vec2::Zero();
+  double sqrt_info_ = 1, min_depth_mm_ = 1;
+};
+
+class ShapeCost final : public ceres::SizedCostFunction<3, 3> {
+ public:
+  void set(const ClosestPointIndex* surface, double w_shape) {
+    surface_ = surface;
+    sqrt_w_ = std::sqrt(w_shape);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    return surface_ && shape_cost(*surface_, sqrt_w_, parameters[0], residuals, jacobians ? jacobians[0] : nullptr);
+  }
+
+ private:
+  const ClosestPointIndex* surface_ = nullptr;
+  double sqrt_w_ = 0;
+};
+
+class PlaneCost final : public ceres::SizedCostFunction<2, 3> {
+ public:
+  void set(const ShapePlane* plane, double w_shape) {
+    plane_ = plane;
+    sqrt_w_ = std::sqrt(w_shape);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    plane_cost(*plane_, sqrt_w_, parameters[0], residuals, jacobians ? jacobians[0] : nullptr);
+    return true;
+  }
+
+ private:
+  const ShapePlane* plane_ = nullptr;
+  double sqrt_w_ = 0;
+};
+
+}  // namespace
+
+struct BundleAdjuster::Impl {
+  Se3LeftManifold manifold;
+  std::unique_ptr<ceres::LossFunction> reprojection_loss, shape_loss;
+  // Cost functions are not copyable: fixed arrays sized in configure(), not
+  // owned by the per-solve Problem.
+  std::unique_ptr<ReprojectionCost[]> reprojection_costs;
+  std::unique_ptr<ShapeCost[]> shape_costs;
+  std::unique_ptr<PlaneCost[]> plane_costs;
+  ceres::Problem::Options problem_options;
+  ceres::Solver::Options solver_options;
+  ceres::Problem* problem = nullptr;  // during solve() only
+};
+
+BundleAdjuster::BundleAdjuster() = default;
+BundleAdjuster::~BundleAdjuster() = default;
+
+Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mesh& mesh, const Pinhole& K,
+                                 int max_points, int max_observations) {
+  configured_ = false;
+  if (!(options.w_shape >= 0) || !std::isfinite(options.w_shape) || !(options.shape_huber_mm > 0) ||
+      !(options.reprojection_huber > 0) || options.max_iterations < 1 || !(options.max_time_s > 0) ||
+      !(options.min_depth_mm > 0) || !(options.max_point_shift_mm > 0))
+    return make_error("bundle adjustment: options out of range (w_shape >= 0, thresholds and limits > 0)");
+  if (!pinhole_is_usable(K)) return make_error("bundle adjustment: the pinhole is not usable");
+  if (max_points < 1 || max_points > kMaxMapPoints || max_observations < 1)
+    return make_error("bundle adjustment: capacities out of range (" + std::to_string(max_points) + " points, " +
+                      std::to_string(max_observations) + " observations)");
+  if (Status s = surface_.configure(mesh); !s.ok()) return make_error("bundle adjustment: " + s.message());
+  options_ = options;
+  K_ = K;
+  impl_ = std::make_unique<Impl>();
+  impl_->reprojection_loss = std::make_unique<ceres::HuberLoss>(options.reprojection_huber);
+  // The residual is sqrt(w_shape) * distance: the threshold in its units.
+  impl_->shape_loss = std::make_unique<ceres::HuberLoss>(std::sqrt(options.w_shape) * options.shape_huber_mm);
+  impl_->reprojection_costs = std::make_unique<ReprojectionCost[]>(static_cast<std::size_t>(max_observations));
+  impl_->shape_costs = std::make_unique<ShapeCost[]>(static_cast<std::size_t>(max_points));
+  impl_->plane_costs = std::make_unique<PlaneCost[]>(static_cast<std::size_t>(max_points));
+  planes_.assign(static_cast<std::size_t>(max_points), ShapePlane{});
+  for (int i = 0; i < max_points; ++i) {
+    impl_->shape_costs[static_cast<std::size_t>(i)].set(&surface_, options.w_shape);
+    impl_->plane_costs[static_cast<std::size_t>(i)].set(&planes_[static_cast<std::size_t>(i)], options.w_shape);
+  }
+  max_points_ = max_points;
+  max_observations_ = max_observations;
+  point_observed_.assign(static_cast<std::size_t>(max_points), 0);
+  ceres::Problem::Options& po = impl_->problem_options;
+  po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  po.disable_all_safety_checks = true;  // valid() checked the job; saves ~1/3 of the build
+  ceres::Solver::Options& so = impl_->solver_options;
+  so.linear_solver_type = ceres::DENSE_SCHUR;
+  so.num_threads = 1;
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+  so.max_num_iterations = options.max_iterations;
+  so.max_solver_time_in_seconds = options.max_time_s;
+  configured_ = true;
+  return Status::Ok();
+}
+
+// Indices in range, values finite, counts within the pools.
+bool BundleAdjuster::valid(const BaJob& job) const {
+  if (job.point_count > max_points_ || job.observation_count > max_observations_ || job.keyframe_count < 1 ||
+      job.point_count < 1)
+    return false;
+  for (int i = 0; i < job.keyframe_count; ++i)
+    if (!job.pose(i).all_finite()) return false;
+  for (int i = 0; i < job.point_count; ++i)
+    if (!job.point(i).allFinite()) return false;
+  for (int i = 0; i < job.observation_count; ++i) {
+    const BaObservation& o = job.observations[static_cast<std::size_t>(i)];
+    if (o.keyframe < 0 || o.keyframe >= job.keyframe_count || o.point < 0 || o.point >= job.point_count ||
+        !std::isfinite(o.x_ideal) || !std::isfinite(o.y_ideal) || !(o.info > 0) || !std::isfinite(o.info))
+      return false;
+  }
+  return true;
+}
+
+// Adds every block and residual to impl_->problem; returns the number of
+// reprojection residuals.
+int BundleAdjuster::build(BaJob* job) {
+  ceres::Problem& problem = *impl_->problem;
+  int fixed = 0, oldest = 0;
+  for (int i = 0; i < job->keyframe_count; ++i) {
+    BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
+    problem.AddParameterBlock(k.pose, kPoseParams, &impl_->manifold);
+    if (k.fixed) {
+      problem.SetParameterBlockConstant(k.pose);
+      ++fixed;
+    }
+    if (k.frame < job->keyframes[static_cast<std::size_t>(oldest)].frame) oldest = i;
+  }
+  if (fixed == 0) {  // gauge: hold the oldest keyframe
+    problem.SetParameterBlockConstant(job->keyframes[static_cast<std::size_t>(oldest)].pose);
+    fixed = 1;
+  }
+  job->summary.fixed_keyframes = fixed;
+  for (int i = 0; i < job->point_count; ++i) point_observed_[static_cast<std::size_t>(i)] = 0;
+  int used = 0;
+  for (int i = 0; i < job->observation_count; ++i) {
+    const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
+    BaKeyframe& k = job->keyframes[static_cast<std::size_t>(o.keyframe)];
+    BaPoint& p = job->points[static_cast<std::size_t>(o.point)];
+    const Vec3 p_camera = pose_from_params(k.pose) * job->point(o.point);
+    if (!(p_camera.z() > options_.min_depth_mm)) continue;  // Ceres needs a valid start
+    ReprojectionCost& c = impl_->reprojection_costs[static_cast<std::size_t>(used++)];
+    c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm);
+    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), k.pose, p.p_model);
+    point_observed_[static_cast<std::size_t>(o.point)] = 1;
+  }
+  if (options_.w_shape > 0) add_shape_residuals(job);
+  return used;
+}
+
+void BundleAdjuster::add_shape_residuals(BaJob* job) {
+  ceres::Problem& problem = *impl_->problem;
+  for (int i = 0; i < job->point_count; ++i) {
+    const auto is = static_cast<std::size_t>(i);
+    if (!point_observed_[is]) continue;
+    double* f = job->points[is].p_model;
+    if (options_.exact_shape) {
+      problem.AddResidualBlock(&impl_->shape_costs[is], impl_->shape_loss.get(), f);
+    } else if (shape_plane(surface_, job->point(i), &planes_[is])) {
+      problem.AddResidualBlock(&impl_->plane_costs[is], impl_->shape_loss.get(), f);
+    }
+  }
+}
+
+bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
+  job->summary = BaSummary{};
+  if (!configured_ || !valid(*job)) return false;
+  ceres::Problem problem(impl_->problem_options);
+  impl_->problem = &problem;
+  const int used = build(job);
+  impl_->problem = nullptr;
+  job->summary.keyframes = job->keyframe_count;
+  job->summary.points = job->point_count;
+  job->summary.observations = used;
+  if (used == 0) return false;
+  ceres::Solver::Options so = impl_->solver_options;
+  if (max_iterations > 0) so.max_num_iterations = max_iterations;
+  if (max_time_s > 0) so.max_solver_time_in_seconds = max_time_s;
+  ceres::Solver::Summary s;
+  ceres::Solve(so, &problem, &s);
+  finish(job, s.initial_cost, s.final_cost, s.total_time_in_seconds, static_cast<int>(s.iterations.size()),
+         s.IsSolutionUsable());
+  return job->summary.usable;
+}
+
+// Summary, finiteness, and the per-point shift gate (a point moved too far
+// gets its handed-over position back: the tracker keeps it unchanged).
+void BundleAdjuster::finish(BaJob* job, double initial_cost, double final_cost, double total_s, int iterations,
+                            bool usable) {
+  BaSummary& out = job->summary;
+  out.iterations = iterations;
+  out.initial_cost = initial_cost;
+  out.final_cost = final_cost;
+  out.solver_ms = total_s * 1e3;
+  bool finite = true;
+  for (int i = 0; i < job->keyframe_count; ++i) finite = finite && job->pose(i).all_finite();
+  for (int i = 0; i < job->point_count; ++i) {
+    BaPoint& p = job->points[static_cast<std::size_t>(i)];
+    const Vec3 now = job->point(i), before(p.p_initial[0], p.p_initial[1], p.p_initial[2]);
+    if (!now.allFinite()) {
+      finite = false;
+      continue;
+    }
+    if ((now - before).norm() > options_.max_point_shift_mm) {
+      for (int k = 0; k < 3; ++k) p.p_model[k] = p.p_initial[k];
+      ++out.points_rejected;
+    }
+  }
+  out.usable = finite && usable && final_cost <= initial_cost;
+  out.mean_surface_distance_mm = mean_surface_distance(*job);
+}
+
+double BundleAdjuster::mean_surface_distance(const BaJob& job) const {
+  double sum = 0;
+  int n = 0;
+  for (int i = 0; i < job.point_count; ++i) {
+    SurfacePoint s;
+    if (surface_.closest(job.point(i), &s)) {
+      sum += s.distance_mm;
+      ++n;
+    }
+  }
+  return n > 0 ? sum / n : -1.0;
+}
+
+}  // namespace st

@@ -1,0 +1,82 @@
+// Bounded bundle adjustment of a BaJob (core/ba_job.h) on a ceres::Problem:
+// robust reprojection residuals (Huber on octave-whitened pixels) for every
+// observation, plus the paper's shape residual w_shape * rho(|f - D(f)|)
+// (Huber in mm) for every point, D from ClosestPointIndex. Keyframe poses
+// live on Se3LeftManifold; keyframes flagged fixed are held constant (when a
+// job has none, the oldest keyframe is fixed to remove the gauge freedom
+// left when w_shape = 0). Single-threaded, dense Schur complement (a window
+// has few poses and many points), bounded iterations and solver time.
+//
+// Memory: the cost-function objects are pooled (sized in configure()) and
+// not owned by the Problem; Ceres itself allocates its Problem, Program and
+// linear-solver workspace on every solve, bounded by the job's size (the
+// bench and tests measure the count). Thread: the mapping thread (one
+// BundleAdjuster per thread; the closest-point index is read-only).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "core/ba_job.h"
+#include "core/ba_residuals.h"
+#include "core/camera.h"
+#include "core/closest_point.h"
+#include "core/mesh.h"
+#include "core/result.h"
+
+namespace st {
+
+struct BundleAdjusterOptions {
+  double w_shape = 100.0;           // paper: 100; 0 drops the shape residual (ablation)
+  double shape_huber_mm = 1.0;      // Huber threshold of the point-to-mesh distance
+  bool exact_shape = false;         // true: D(f) re-queried at every evaluation; false: tangent
+                                    // plane at the start value (core/ba_residuals.h)
+  double reprojection_huber = 2.447651936;  // on whitened pixels: sqrt(chi2 95%, 2 DoF)
+  int max_iterations = 10;
+  double max_time_s = 0.05;         // Ceres stops after this much solver time
+  double min_depth_mm = 1.0;        // observations at a smaller depth are left out
+  double max_point_shift_mm = 10.0; // a point moved farther is marked rejected (the
+                                    // tracker keeps its old position)
+};
+
+class BundleAdjuster {
+ public:
+  BundleAdjuster();
+  ~BundleAdjuster();
+  BundleAdjuster(const BundleAdjuster&) = delete;
+  BundleAdjuster& operator=(const BundleAdjuster&) = delete;
+
+  // Builds the closest-point index of the mesh and the cost-function pools
+  // for jobs of up to max_points / max_observations (allocates).
+  Status configure(const BundleAdjusterOptions& options, const Mesh& mesh, const Pinhole& K, int max_points,
+                   int max_observations);
+  // Solves the job in place with iteration and time limits (overriding the
+  // options' when > 0) and fills job->summary. False (summary.usable false)
+  // on an invalid job or a failed solve: the job's values are then not to
+  // be applied.
+  bool solve(BaJob* job, int max_iterations = 0, double max_time_s = 0);
+
+  const ClosestPointIndex& surface() const { return surface_; }
+  const BundleAdjusterOptions& options() const { return options_; }
+  // Mean distance of the job's points to the mesh (mm); -1 for no points.
+  double mean_surface_distance(const BaJob& job) const;
+
+ private:
+  struct Impl;  // the Ceres objects (kept out of this header: glog macros)
+  bool valid(const BaJob& job) const;
+  int build(BaJob* job);
+  void add_shape_residuals(BaJob* job);
+  void finish(BaJob* job, double initial_cost, double final_cost, double total_s, int iterations, bool usable);
+
+  BundleAdjusterOptions options_;
+  Pinhole K_;
+  ClosestPointIndex surface_;
+  std::unique_ptr<Impl> impl_;
+  std::vector<std::uint8_t> point_observed_;
+  std::vector<ShapePlane> planes_;  // per job point: tangent plane at the start value  // per job point: has a reprojection residual
+  int max_points_ = 0, max_observations_ = 0;
+  bool configured_ = false;
+};
+
+}  // namespace st

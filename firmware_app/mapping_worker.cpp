@@ -1,0 +1,103 @@
+#include "firmware_app/mapping_worker.h"
+
+#include "platform/alloc_counter.h"
+#include "platform/clock.h"
+
+namespace st::app {
+
+Status MappingWorker::configure(const TrackerConfig& config, const Mesh& mesh, const Pinhole& K) {
+  stop();
+  configured_ = false;
+  config_ = config;
+  BundleAdjusterOptions o;
+  o.w_shape = config.w_shape;
+  o.max_iterations = config.ba_max_iterations;
+  o.max_time_s = config.ba_max_time_s;
+  if (Status s = job_.configure(config.max_keyframes, config.max_map_points, config.ba_max_observations); !s.ok())
+    return make_error("mapping: " + s.message());
+  if (Status s = adjuster_.configure(o, mesh, K, config.max_map_points, config.ba_max_observations); !s.ok())
+    return make_error("mapping: " + s.message());
+  state_.store(kFree, std::memory_order_release);
+  stats_ = MappingStats{};
+  solve_ms_.clear();
+  configured_ = true;
+  return Status::Ok();
+}
+
+void MappingWorker::start() {
+  if (!configured_ || thread_.joinable()) return;
+  state_.store(kFree, std::memory_order_release);
+  thread_ = std::thread([this] { run(); });
+}
+
+void MappingWorker::stop() {
+  if (!thread_.joinable()) return;
+  queue_.push_wait(-1);
+  thread_.join();
+}
+
+BaJob* MappingWorker::acquire_job() {
+  return configured_ && thread_.joinable() && state_.load(std::memory_order_acquire) == kFree ? &job_ : nullptr;
+}
+
+void MappingWorker::submit_job(BaJob* job) {
+  if (job != &job_) return;
+  state_.store(kQueued, std::memory_order_release);
+  // Capacity 2 and one job buffer: never full here (the stop marker comes
+  // only from stop(), on this same thread).
+  queue_.try_push(0);
+}
+
+const BaJob* MappingWorker::solved_job() {
+  return state_.load(std::memory_order_acquire) == kSolved ? &job_ : nullptr;
+}
+
+void MappingWorker::release_job(const BaJob* job) {
+  if (job == &job_) state_.store(kFree, std::memory_order_release);
+}
+
+void MappingWorker::run() {
+  for (;;) {
+    std::int32_t slot = -1;
+    queue_.pop_wait(&slot);
+    if (slot < 0) return;
+    solve_one();
+    state_.store(kSolved, std::memory_order_release);
+  }
+}
+
+void MappingWorker::solve_one() {
+  const bool global = job_.kind == BaKind::kGlobal;
+  const std::uint64_t allocs0 = platform::thread_allocation_count();
+  const std::int64_t t0 = platform::monotonic_ns();
+  const bool ok = global ? adjuster_.solve(&job_, config_.ba_global_max_iterations, config_.ba_global_max_time_s)
+                         : adjuster_.solve(&job_);
+  solve_ms_.add(static_cast<double>(platform::monotonic_ns() - t0) * 1e-6);
+  const std::uint64_t allocs = platform::thread_allocation_count() - allocs0;
+  if (allocs > stats_.max_allocations_per_solve) stats_.max_allocations_per_solve = allocs;
+  (global ? stats_.global_solves : stats_.window_solves) += 1;
+  if (!ok) ++stats_.unusable;
+  if (ok) stats_.mean_surface_distance_mm = job_.summary.mean_surface_distance_mm;
+}
+
+MappingStats MappingWorker::stats() const {
+  MappingStats s = stats_;
+  s.solve_median_ms = solve_ms_.quantile_ms(0.5);
+  s.solve_p99_ms = solve_ms_.quantile_ms(0.99);
+  s.solve_max_ms = solve_ms_.max_ms();
+  return s;
+}
+
+void MappingWorker::append_summary(std::vector<std::pair<std::string, double>>* fields) const {
+  const MappingStats s = stats();
+  fields->emplace_back("ba_window_solves", s.window_solves);
+  fields->emplace_back("ba_global_solves", s.global_solves);
+  fields->emplace_back("ba_unusable", s.unusable);
+  fields->emplace_back("ba_solve_median_ms", s.solve_median_ms);
+  fields->emplace_back("ba_solve_p99_ms", s.solve_p99_ms);
+  fields->emplace_back("ba_solve_max_ms", s.solve_max_ms);
+  fields->emplace_back("ba_max_allocations_per_solve", static_cast<double>(s.max_allocations_per_solve));
+  fields->emplace_back("ba_mean_surface_distance_mm", s.mean_surface_distance_mm);
+}
+
+}  // namespace st::app

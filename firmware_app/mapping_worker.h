@@ -1,0 +1,77 @@
+// The mapping thread: solves the tracker's bundle-adjustment jobs
+// (core/bundle_adjustment.h) off the tracking thread. Implements
+// core/ba_channel.h with one job buffer and a fixed-capacity SPSC queue of
+// job slots (platform/spsc_queue.h): while the buffer is away the tracker
+// gets nullptr from acquire_job() and defers its job; the solved job comes
+// back through an atomic state the tracker reads at the start of a frame
+// (no lock, nothing held across a frame).
+//
+// Threads: configure() on the owner (allocates the job buffer, the BA
+// pools and the closest-point index); start()/stop() on the tracking
+// thread (start spawns the mapping thread, stop joins it); the BaChannel
+// calls on the tracking thread (allocate nothing, never block); solving
+// on the mapping thread (Ceres allocates there, bounded by the job size;
+// counted per solve in stats()).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "core/ba_channel.h"
+#include "core/bundle_adjustment.h"
+#include "core/latency_histogram.h"
+#include "core/tracker.h"
+#include "platform/spsc_queue.h"
+
+namespace st::app {
+
+struct MappingStats {
+  int window_solves = 0, global_solves = 0, unusable = 0;
+  double solve_median_ms = 0, solve_p99_ms = 0, solve_max_ms = 0;  // wall time of solve()
+  std::uint64_t max_allocations_per_solve = 0;  // mapping thread, inside solve()
+  double mean_surface_distance_mm = -1;         // of the last usable job's points after the solve
+};
+
+class MappingWorker final : public BaChannel {
+ public:
+  MappingWorker() = default;
+  ~MappingWorker() override { stop(); }
+  MappingWorker(const MappingWorker&) = delete;
+  MappingWorker& operator=(const MappingWorker&) = delete;
+
+  // Sizes the job for the tracker's pools and configures the adjuster.
+  Status configure(const TrackerConfig& config, const Mesh& mesh, const Pinhole& K);
+  void start();
+  void stop();  // finishes the solve in progress, then joins
+
+  BaJob* acquire_job() override;
+  void submit_job(BaJob* job) override;
+  const BaJob* solved_job() override;
+  void release_job(const BaJob* job) override;
+
+  // After stop().
+  MappingStats stats() const;
+  void append_summary(std::vector<std::pair<std::string, double>>* fields) const;
+
+ private:
+  enum State : int { kFree, kQueued, kSolved };
+  void run();
+  void solve_one();
+
+  TrackerConfig config_;
+  BundleAdjuster adjuster_;
+  BaJob job_;
+  std::atomic<int> state_{kFree};
+  platform::SpscQueue<std::int32_t, 2> queue_;  // job slot, or -1: stop
+  std::thread thread_;
+  bool configured_ = false;
+  // Written by the mapping thread only; read after stop().
+  MappingStats stats_;
+  LatencyHistogram solve_ms_;
+};
+
+}  // namespace st::app

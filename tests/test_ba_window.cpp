@@ -1,0 +1,148 @@
+// Window bundle adjustment on a simulated liver window (tests/support/
+// ba_window.h): the perturbation test (poses 1 deg / 2 mm, points
+// 1 mm) with and without the shape residual, bounded iterations, the
+// allocation count of a solve, bad jobs refused.
+#include <doctest/doctest.h>
+
+#include <cmath>
+
+#include "core/bundle_adjustment.h"
+#include "support/alloc_guard.h"
+#include "support/ba_window.h"
+#include "support/track_scene.h"
+
+using namespace st;
+using namespace st::test;
+
+namespace {
+
+struct Errors {
+  double rot_deg = 0, trans_mm = 0, point_mm = 0, surface_mm = 0;
+};
+
+Errors errors(const BaWindow& w, const BundleAdjuster& ba) {
+  Errors e;
+  int nk = 0;
+  for (int k = 0; k < w.job.keyframe_count; ++k) {
+    if (w.job.keyframes[static_cast<std::size_t>(k)].fixed) continue;
+    const PoseDelta d = pose_delta(w.T_true[static_cast<std::size_t>(k)], w.job.pose(k));
+    const Vec3 c_true = w.T_true[static_cast<std::size_t>(k)].inverse().translation();
+    e.rot_deg += d.angle_deg;
+    e.trans_mm += (w.job.pose(k).inverse().translation() - c_true).norm();
+    ++nk;
+  }
+  e.rot_deg /= nk;
+  e.trans_mm /= nk;
+  for (int i = 0; i < w.job.point_count; ++i) e.point_mm += (w.job.point(i) - w.p_true[static_cast<std::size_t>(i)]).norm();
+  e.point_mm /= w.job.point_count;
+  e.surface_mm = ba.mean_surface_distance(w.job);
+  return e;
+}
+
+BundleAdjusterOptions options(double w_shape) {
+  BundleAdjusterOptions o;
+  o.w_shape = w_shape;
+  o.max_iterations = 20;
+  o.max_time_s = 5.0;  // generous: the test checks accuracy, the bench checks time
+  return o;
+}
+
+}  // namespace
+
+TEST_CASE("ba window: perturbed poses and points come back; the shape residual keeps points on the mesh") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BaWindowSpec spec;
+  spec.points = 600;
+  Errors with_shape, without_shape, start;
+  for (const double w_shape : {100.0, 0.0}) {
+    BaWindow w = make_ba_window(mesh, K, spec);
+    REQUIRE(w.job.point_count > 400);
+    BundleAdjuster ba;
+    REQUIRE(ba.configure(options(w_shape), mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+    start = errors(w, ba);
+    REQUIRE(ba.solve(&w.job));
+    const Errors end = errors(w, ba);
+    MESSAGE("w_shape " << w_shape << ": rotation " << start.rot_deg << " -> " << end.rot_deg << " deg, centre "
+                       << start.trans_mm << " -> " << end.trans_mm << " mm, points " << start.point_mm << " -> "
+                       << end.point_mm << " mm, to surface " << start.surface_mm << " -> " << end.surface_mm
+                       << " mm; " << w.job.summary.iterations << " iterations, " << w.job.summary.observations
+                       << " observations, cost " << w.job.summary.initial_cost << " -> " << w.job.summary.final_cost);
+    CHECK(w.job.summary.usable);
+    CHECK(end.rot_deg < 0.5 * start.rot_deg);
+    CHECK(end.trans_mm < 0.5 * start.trans_mm);
+    CHECK(end.point_mm < start.point_mm);
+    (w_shape > 0 ? with_shape : without_shape) = end;
+  }
+  CHECK(with_shape.surface_mm < without_shape.surface_mm);
+  CHECK(with_shape.surface_mm < 0.5 * start.surface_mm);
+}
+
+TEST_CASE("ba window: the exact re-queried shape residual converges as well") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BaWindowSpec spec;
+  spec.points = 300;
+  BaWindow w = make_ba_window(mesh, K, spec);
+  BundleAdjusterOptions o = options(100.0);
+  o.exact_shape = true;
+  BundleAdjuster ba;
+  REQUIRE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+  const Errors start = errors(w, ba);
+  REQUIRE(ba.solve(&w.job));
+  const Errors end = errors(w, ba);
+  MESSAGE("exact shape: rotation " << start.rot_deg << " -> " << end.rot_deg << " deg, points " << start.point_mm
+                                   << " -> " << end.point_mm << " mm, to surface " << start.surface_mm << " -> "
+                                   << end.surface_mm << " mm, " << w.job.summary.iterations << " iterations");
+  CHECK(end.rot_deg < 0.5 * start.rot_deg);
+  CHECK(end.point_mm < 0.5 * start.point_mm);
+  CHECK(end.surface_mm < 0.1 * start.surface_mm);
+}
+
+TEST_CASE("ba window: iteration cap holds, allocations per solve are bounded and repeatable") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BaWindowSpec spec;
+  spec.points = 300;
+  BaWindow w = make_ba_window(mesh, K, spec);
+  BundleAdjuster ba;
+  REQUIRE(ba.configure(options(100.0), mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+  const BaJob pristine = w.job;
+  std::uint64_t counts[3] = {};
+  for (std::uint64_t& n : counts) {
+    w.job = pristine;
+    const AllocationCounter counter;
+    REQUIRE(ba.solve(&w.job, 3));
+    n = counter.count();
+    CHECK(w.job.summary.iterations <= 4);  // Ceres counts the initial evaluation as iteration 0
+  }
+  MESSAGE("allocations per solve (" << w.job.summary.observations << " observations, " << w.job.point_count
+                                    << " points): " << counts[0] << ", " << counts[1] << ", " << counts[2]);
+  CHECK(counts[1] == counts[2]);  // no growth from one solve to the next
+  CHECK(counts[1] < 20u * static_cast<std::uint64_t>(w.job.summary.observations + w.job.point_count));
+}
+
+TEST_CASE("ba window: invalid jobs are refused without touching Ceres") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BundleAdjuster ba;
+  BaJob job;
+  REQUIRE(job.configure(2, 2, 2).ok());
+  CHECK_FALSE(ba.solve(&job));  // not configured
+  REQUIRE(ba.configure(BundleAdjusterOptions{}, mesh, K, 2, 2).ok());
+  CHECK_FALSE(ba.solve(&job));  // empty
+  const SE3 T = look_at(bbox_centre(mesh), Vec3(0, 0, 1), 200, 0);
+  const int k = job.add_keyframe(0, 1, T, false);
+  const int p = job.add_point(0, 1, bbox_centre(mesh));
+  REQUIRE(job.add_observation(k, p, Vec2(320, 180), 1.0));
+  job.observations[0].point = 7;  // out of range
+  CHECK_FALSE(ba.solve(&job));
+  job.observations[0].point = p;
+  job.points[0].p_model[0] = std::nan("");
+  CHECK_FALSE(ba.solve(&job));
+  CHECK_FALSE(job.summary.usable);
+  BundleAdjusterOptions bad;
+  bad.w_shape = -1;
+  CHECK_FALSE(ba.configure(bad, mesh, K, 2, 2).ok());
+  CHECK_FALSE(job.configure(0, 1, 1).ok());
+}

@@ -1,0 +1,116 @@
+// Stage "ba": window bundle adjustment (core/bundle_adjustment.h) on a
+// simulated window of the CT liver (tests/support/ba_window.h): 8 keyframes
+// (+2 older fixed ones), ~1000 points, 1280x720 pinhole fx = 1000, poses
+// perturbed by 1 deg / 2 mm and points by 1 mm, default options (10
+// iterations, w_shape 100), one thread. Rows: solve time with the shape
+// residual and with w_shape = 0; allocations per solve and accuracy in the
+// note; the closest-point query D(f) for points within 2 mm of the surface.
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bench.h"
+#include "core/bundle_adjustment.h"
+#include "core/closest_point.h"
+#include "platform/alloc_counter.h"
+#include "tests/support/ba_window.h"
+#include "tests/support/test_ply.h"
+
+namespace st::bench {
+namespace {
+
+double mean_point_error(const test::BaWindow& w) {
+  double e = 0;
+  for (int i = 0; i < w.job.point_count; ++i) e += (w.job.point(i) - w.p_true[static_cast<std::size_t>(i)]).norm();
+  return e / w.job.point_count;
+}
+
+Row bench_window(const Options& opt, const Mesh& liver, double w_shape, int points) {
+  test::BaWindowSpec spec;
+  spec.points = points;
+  const Pinhole K = test::bench_pinhole();
+  test::BaWindow w = test::make_ba_window(liver, K, spec);
+  BundleAdjusterOptions o;
+  o.w_shape = w_shape;
+  BundleAdjuster ba;
+  Row row;
+  if (!ba.configure(o, liver, K, w.job.point_capacity(), w.job.observation_capacity()).ok()) return row;
+  const BaJob pristine = w.job;
+  const int n = opt.iterations > 0 ? opt.iterations : 30;
+  std::uint64_t max_allocs = 0;
+  double iters = 0, err_before = mean_point_error(w), err_after = 0, surface = 0;
+  for (int i = 0; i < n; ++i) {
+    w.job = pristine;
+    const std::uint64_t a0 = platform::thread_allocation_count();
+    const double t0 = now_ms();
+    ba.solve(&w.job);
+    row.samples_ms.push_back(now_ms() - t0);
+    max_allocs = std::max(max_allocs, platform::thread_allocation_count() - a0);
+    iters += w.job.summary.iterations;
+    err_after = mean_point_error(w);
+    surface = w.job.summary.mean_surface_distance_mm;
+  }
+  row.name = "ba window 8 kf " + std::to_string(w.job.point_count) + " pts w_shape " + std::to_string(static_cast<int>(w_shape));
+  char note[220];
+  std::snprintf(note, sizeof note,
+                "%d obs; %.1f iterations; allocations/solve %llu; point error %.2f -> %.3f mm; to surface %.3f mm",
+                w.job.summary.observations, iters / n, static_cast<unsigned long long>(max_allocs), err_before,
+                err_after, surface);
+  row.note = note;
+  return row;
+}
+
+Row bench_closest(const Options& opt, const Mesh& liver) {
+  ClosestPointIndex index;
+  Row row;
+  if (!index.configure(liver).ok()) return row;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Vec3> q;
+  for (int i = 0; i < 10000; ++i) {
+    const int v = static_cast<int>(u(rng) * (liver.vertex_count() - 1));
+    q.push_back(liver.vertex(v) + 2.0 * u(rng) * test::random_unit(rng));
+  }
+  const int n = opt.iterations > 0 ? opt.iterations : 30;
+  double sink = 0;
+  for (int i = 0; i < n; ++i) {
+    const double t0 = now_ms();
+    SurfacePoint s;
+    for (const Vec3& p : q)
+      if (index.closest(p, &s)) sink += s.distance_mm;
+    row.samples_ms.push_back(now_ms() - t0);
+  }
+  row.name = "closest point 10k queries (<= 2 mm off)";
+  char note[160];
+  std::snprintf(note, sizeof note, "BVH %d nodes depth %d, %zu KiB for %d triangles (mean dist %.2f mm)",
+                index.node_count(), index.depth(), index.memory_bytes() / 1024, index.triangle_count(),
+                sink / (static_cast<double>(n) * 10000.0));
+  row.note = note;
+  return row;
+}
+
+int run(const Options& opt) {
+  const std::string path = opt.shared_dir + "/data/liver/liver.ply";
+  std::ifstream f(path, std::ios::binary);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  auto mesh = test::read_binary_ply_for_tests(ss.str());
+  if (!mesh.ok()) {
+    std::fprintf(stderr, "ba: cannot load %s: %s\n", path.c_str(), mesh.message().c_str());
+    return 1;
+  }
+  report(opt, bench_window(opt, mesh.value(), 100.0, 1000));
+  report(opt, bench_window(opt, mesh.value(), 0.0, 1000));
+  report(opt, bench_closest(opt, mesh.value()));
+  return 0;
+}
+
+}  // namespace
+
+SCOPETRACK_BENCH_STAGE("ba", "window BA (8 keyframes, ~1000 points, w_shape 100 / 0), closest-point queries", run);
+
+}  // namespace st::bench
