@@ -87,6 +87,14 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   chunk_relaxed_.assign(chunk_ok_.size(), 0);
   smooth_tiles_.assign(static_cast<std::size_t>(ceil_div(width, ImagePyramid::kSmoothTilePx)) *
                            ceil_div(height, ImagePyramid::kSmoothTilePx), 0);
+  rank_count_.assign(cap + 1, 0);
+  {
+    const std::size_t scells = static_cast<std::size_t>(ceil_div(width, c.min_spread_cell_px)) *
+                               ceil_div(height, c.min_spread_cell_px);
+    spread_count_.assign(scells, 0);
+    spread_open_.assign(scells, 0);
+  }
+  spread_open_chunks_.assign(static_cast<std::size_t>(ceil_div(width, kBlock)) + 1, 0);
   cell_need_.assign(static_cast<std::size_t>(ceil_div(height, c.threshold_cell_px) + 1) *
                         (ceil_div(width, kBlock) + 1), 0);
   return Status::Ok();
@@ -246,15 +254,30 @@ void OrbExtractor::build_relaxed_chunk_map(int level) {
       need[static_cast<std::ptrdiff_t>(cy) * chunks + cx] = n;
     }
   }
+  const int scell = relaxed_cell_px_;
+  const int scells_x = scell > 0 ? ceil_div(img.width, scell) : 0;
+  std::uint8_t* open_chunk = spread_open_chunks_.data();
+  int open_row = -1;
   for (int y = 0; y < img.height; ++y) {
     const std::uint8_t* nrow = need + static_cast<std::ptrdiff_t>(y / cell) * chunks;
     std::uint8_t* out = chunk_relaxed_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
-    if (!use_chunks_) {
-      std::memcpy(out, nrow, static_cast<std::size_t>(chunks));
-      continue;
+    std::memcpy(out, nrow, static_cast<std::size_t>(chunks));
+    if (use_chunks_) {
+      const std::uint8_t* in = chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+      for (int cx = 0; cx < chunks; ++cx) out[cx] &= in[cx];
     }
-    const std::uint8_t* in = chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
-    for (int cx = 0; cx < chunks; ++cx) out[cx] = static_cast<std::uint8_t>(nrow[cx] & in[cx]);
+    if (scell == 0) continue;
+    if (y / scell != open_row) {  // chunks touching an open spreading cell of this row
+      open_row = y / scell;
+      const std::uint8_t* open = spread_open_.data() + static_cast<std::ptrdiff_t>(open_row) * scells_x;
+      for (int cx = 0; cx < chunks; ++cx) {
+        const int s0 = cx * kBlock / scell, s1 = std::min((cx * kBlock + kBlock - 1) / scell, scells_x - 1);
+        std::uint8_t any = 0;
+        for (int sx = s0; sx <= s1; ++sx) any |= open[sx];
+        open_chunk[cx] = any;
+      }
+    }
+    for (int cx = 0; cx < chunks; ++cx) out[cx] &= open_chunk[cx];
   }
 }
 
@@ -269,19 +292,30 @@ int OrbExtractor::filter_relaxed(int level, int n_fast, int n) {
     if (c.score > config_.fast_threshold_strict) continue;  // already in pass 1 (or masked)
     const std::uint32_t ci = static_cast<std::uint32_t>((c.y / cell) * cells_x + c.x / cell);
     if (cell_has_strict_[ci]) continue;
+    if (relaxed_cell_px_ > 0) {  // closed spreading cell: it could not be kept
+      const int sc = relaxed_cell_px_;
+      if (!spread_open_[static_cast<std::size_t>((c.y / sc) * ceil_div(img.width, sc) + c.x / sc)]) continue;
+    }
     if (use_chunks_ && !inside_masks(level, c.x, c.y)) continue;
     cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score, 0};
   }
   return n;
 }
 
+// Spreading cells hold about spread_cell_keypoints of the target over the
+// allowed area (see OrbConfig).
+int OrbExtractor::spread_cell_px(int level, int target) const {
+  const GrayView img = pyramid_.level(level);
+  const float area = static_cast<float>(img.width) * static_cast<float>(img.height) * allowed_fraction_;
+  return std::max(config_.min_spread_cell_px,
+                  static_cast<int>(std::sqrt(area * static_cast<float>(config_.spread_cell_keypoints) /
+                                             static_cast<float>(std::max(target, 1)))));
+}
+
 int OrbExtractor::spread(int level, int n, int target) {
   if (n <= target) return n;
   const GrayView img = pyramid_.level(level);
-  const float area = static_cast<float>(img.width) * static_cast<float>(img.height) * allowed_fraction_;
-  const int cell = std::max(config_.min_spread_cell_px,
-                            static_cast<int>(std::sqrt(area * static_cast<float>(config_.spread_cell_keypoints) /
-                                                             static_cast<float>(target))));
+  const int cell = spread_cell_px(level, target);
   const int cells_x = ceil_div(img.width, cell);
   Candidate* c = cand_.data();
   if (cells_x == 1 && cell >= img.height) {  // one cell: the strongest, in O(n)
@@ -293,14 +327,17 @@ int OrbExtractor::spread(int level, int n, int target) {
     return a.cell != b.cell ? a.cell < b.cell : a.key > b.key;
   });
   // Rank inside each cell; count how many corners each rank holds.
-  int rank_count[256] = {};
+  int max_rank = 0;
   for (int i = 0; i < n; ++i) {
-    const int r = (i > 0 && c[i].cell == c[i - 1].cell) ? std::min(c[i - 1].rank + 1, 255) : 0;
-    c[i].rank = static_cast<std::uint8_t>(r);
-    ++rank_count[r];
+    const int r = (i > 0 && c[i].cell == c[i - 1].cell) ? std::min(c[i - 1].rank + 1, 65535) : 0;
+    c[i].rank = static_cast<std::uint16_t>(r);
+    max_rank = std::max(max_rank, r);
   }
+  std::int32_t* rank_count = rank_count_.data();
+  std::fill(rank_count, rank_count + max_rank + 1, 0);
+  for (int i = 0; i < n; ++i) ++rank_count[c[i].rank];
   int full_ranks = 0, taken = 0;  // ranks taken whole
-  while (full_ranks < 256 && taken + rank_count[full_ranks] <= target) taken += rank_count[full_ranks++];
+  while (full_ranks <= max_rank && taken + rank_count[full_ranks] <= target) taken += rank_count[full_ranks++];
   // Keep ranks < full_ranks; then the strongest of rank full_ranks fill up.
   auto* split = std::partition(c, c + n, [&](const Candidate& a) { return a.rank < full_ranks; });
   auto* rest_end = std::partition(split, c + n, [&](const Candidate& a) { return a.rank == full_ranks; });
@@ -309,6 +346,49 @@ int OrbExtractor::spread(int level, int n, int target) {
     std::nth_element(split, split + fill, rest_end,
                      [](const Candidate& a, const Candidate& b) { return a.key > b.key; });
   return taken + std::max(fill, 0);
+}
+
+// Which spreading cells (of spread(level, .., target)) a relaxed corner could
+// still survive in, given the n strict candidates. A relaxed corner ranks
+// below every strict corner of its cell (its FAST score is <= the strict
+// threshold < theirs), so in a cell with s strict corners its rank is >= s.
+// Adding corners never raises the number of ranks spread() takes whole, so
+// that number computed from the strict corners alone (R) bounds it: cells
+// with s > R are closed, and skipping relaxed corners there changes nothing.
+// Returns false if every cell is closed (no relaxed pass needed).
+bool OrbExtractor::close_spread_cells(int level, int n, int target) {
+  relaxed_cell_px_ = 0;
+  if (n <= target) return true;  // all open: every corner could be kept
+  const GrayView img = pyramid_.level(level);
+  const int cell = spread_cell_px(level, target);
+  const int cells_x = ceil_div(img.width, cell);
+  const int ncells = cells_x * ceil_div(img.height, cell);
+  std::int32_t* count = spread_count_.data();
+  std::fill(count, count + ncells, 0);
+  int max_count = 0;
+  for (int i = 0; i < n; ++i) {
+    const Candidate& c = cand_[static_cast<std::size_t>(i)];
+    const int ci = (c.y / cell) * cells_x + c.x / cell;
+    max_count = std::max(max_count, ++count[ci]);
+  }
+  // hist[s] = cells holding s strict corners; cells with rank r = cells with s > r.
+  std::int32_t* hist = rank_count_.data();
+  std::fill(hist, hist + max_count + 1, 0);
+  for (int i = 0; i < ncells; ++i) ++hist[count[i]];
+  int cells_above = ncells - hist[0];
+  int full_ranks = 0, taken = 0;
+  while (taken + cells_above <= target) {  // ends: the ranks hold n > target corners
+    taken += cells_above;
+    ++full_ranks;
+    cells_above -= hist[full_ranks];
+  }
+  bool any_open = false;
+  for (int i = 0; i < ncells; ++i) {
+    spread_open_[static_cast<std::size_t>(i)] = count[i] <= full_ranks ? 1 : 0;
+    any_open |= count[i] <= full_ranks;
+  }
+  relaxed_cell_px_ = cell;
+  return any_open;
 }
 
 // Harris corner response (k = 0.04) over a 7x7 window of central-difference
@@ -395,7 +475,9 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
     const int n1 = filter_strict(k, n_strict);
     int n_kept = n1;
     int n_relaxed = 0;
-    if (config_.fast_threshold_relaxed < config_.fast_threshold_strict) {
+    // Relaxed corners only where they could survive the first spreading.
+    if (config_.fast_threshold_relaxed < config_.fast_threshold_strict &&
+        close_spread_cells(k, n1, 2 * level_target_[k])) {
       build_relaxed_chunk_map(k);
       n_relaxed = fast_.detect(img, config_.fast_threshold_relaxed, config_.edge_border_px,
                                chunk_relaxed_.data(), chunks, fast_out_.data(), capacity);

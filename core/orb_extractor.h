@@ -85,13 +85,15 @@ class OrbExtractor {
     float key;            // what spreading ranks by (FAST score, then Harris response)
     std::uint16_t x, y;   // level pixels
     std::uint8_t score;   // FAST score
-    std::uint8_t rank;    // order inside its spreading cell by key (0 = best)
+    std::uint16_t rank;   // order inside its spreading cell by key (0 = best), capped at 65535
   };
   void prepare_masks(GrayView organ, GrayView valid);
   void mark_full_blocks();
   void build_chunk_map(int level);
   bool inside_masks(int level, int x, int y) const;
   int filter_strict(int level, int n_fast);
+  int spread_cell_px(int level, int target) const;
+  bool close_spread_cells(int level, int n, int target);
   void build_relaxed_chunk_map(int level);
   int filter_relaxed(int level, int n_fast, int n);
   int spread(int level, int n, int target);
@@ -116,6 +118,11 @@ class OrbExtractor {
   std::vector<std::uint8_t> chunk_relaxed_;  // chunks the relaxed pass scores (same layout)
   std::vector<std::uint8_t> smooth_tiles_;   // per level: 32x32 tiles that need smoothing
   std::vector<std::uint8_t> cell_need_;      // per threshold-cell row x chunk: any cell without strict
+  std::vector<std::int32_t> rank_count_;     // spread(): corners per rank (one per candidate at most)
+  std::vector<std::int32_t> spread_count_;   // per spreading cell: strict corners
+  std::vector<std::uint8_t> spread_open_;    // per spreading cell: a relaxed corner could still be kept
+  std::vector<std::uint8_t> spread_open_chunks_;  // per 16-pixel chunk of one row: touches an open cell
+  int relaxed_cell_px_ = 0;                  // spreading cell size of the closed map (0: all open)
   GrayView organ_;                           // dilated organ mask of this frame (or empty)
   GrayView valid_;                           // valid mask of this frame (or empty)
   int blocks_x_ = 0, blocks_y_ = 0;
