@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <initializer_list>
 #include <string>
 
 namespace st {
@@ -22,23 +23,65 @@ inline int to_mask(float v0, int mask_n, int image_n) {
   return m;
 }
 
-// Marks every 16x16 level-0 block touched by a non-zero pixel of mask.
-void mark_blocks(GrayView mask, int width, int height, int blocks_x, std::uint8_t* blocks) {
-  for (int my = 0; my < mask.height; ++my) {
-    const std::uint8_t* row = mask.row(my);
-    const int y0 = static_cast<int>(static_cast<std::int64_t>(my) * height / mask.height) / kBlock;
-    const int y1 = static_cast<int>((static_cast<std::int64_t>(my + 1) * height - 1) / mask.height) / kBlock;
-    for (int mx = 0; mx < mask.width; ++mx) {
-      if (!row[mx]) continue;
-      const int x0 = static_cast<int>(static_cast<std::int64_t>(mx) * width / mask.width) / kBlock;
-      const int x1 = static_cast<int>((static_cast<std::int64_t>(mx + 1) * width - 1) / mask.width) / kBlock;
-      for (int by = y0; by <= y1; ++by)
-        for (int bx = x0; bx <= x1; ++bx) blocks[by * blocks_x + bx] = 1;
+// For every 16-pixel block along one axis: the first and last mask index
+// whose pixel (covering image pixels [m * image_n / mask_n, ((m + 1) *
+// image_n - 1) / mask_n]) touches it; lo > hi if none does.
+void block_spans(int mask_n, int image_n, int blocks, std::int32_t* lo, std::int32_t* hi) {
+  std::fill(lo, lo + blocks, mask_n);
+  std::fill(hi, hi + blocks, -1);
+  for (int m = 0; m < mask_n; ++m) {
+    const int b0 = static_cast<int>(static_cast<std::int64_t>(m) * image_n / mask_n) / kBlock;
+    const int b1 = static_cast<int>((static_cast<std::int64_t>(m + 1) * image_n - 1) / mask_n) / kBlock;
+    for (int b = b0; b <= std::min(b1, blocks - 1); ++b) {
+      lo[b] = std::min(lo[b], m);
+      hi[b] = std::max(hi[b], m);
     }
   }
 }
 
 }  // namespace
+
+// Per 16x16 level-0 block: any[b] = some mask pixel touching it is set,
+// all[b] = every one is (1 if none touches it). Rows of a block are reduced
+// first (max / min over contiguous rows vectorise), then the columns.
+void OrbExtractor::block_any_all(GrayView mask, std::uint8_t* any, std::uint8_t* all) {
+  std::int32_t* ylo = span_rows_.data();
+  std::int32_t* yhi = ylo + blocks_y_;
+  std::int32_t* xlo = span_cols_.data();
+  std::int32_t* xhi = xlo + blocks_x_;
+  block_spans(mask.height, height_, blocks_y_, ylo, yhi);
+  block_spans(mask.width, width_, blocks_x_, xlo, xhi);
+  std::uint8_t* rmax = row_max_.data();
+  std::uint8_t* rmin = row_min_.data();
+  const int w = mask.width;
+  for (int by = 0; by < blocks_y_; ++by) {
+    std::uint8_t* a = any + static_cast<std::ptrdiff_t>(by) * blocks_x_;
+    std::uint8_t* l = all + static_cast<std::ptrdiff_t>(by) * blocks_x_;
+    if (ylo[by] > yhi[by]) {
+      std::fill(a, a + blocks_x_, 0);
+      std::fill(l, l + blocks_x_, 1);
+      continue;
+    }
+    std::memcpy(rmax, mask.row(ylo[by]), static_cast<std::size_t>(w));
+    std::memcpy(rmin, mask.row(ylo[by]), static_cast<std::size_t>(w));
+    for (int y = ylo[by] + 1; y <= yhi[by]; ++y) {
+      const std::uint8_t* r = mask.row(y);
+      for (int x = 0; x < w; ++x) {
+        rmax[x] = std::max(rmax[x], r[x]);
+        rmin[x] = std::min(rmin[x], r[x]);
+      }
+    }
+    for (int bx = 0; bx < blocks_x_; ++bx) {
+      std::uint8_t mx = 0, mn = 255;
+      for (int x = xlo[bx]; x <= xhi[bx]; ++x) {
+        mx = std::max(mx, rmax[x]);
+        mn = std::min(mn, rmin[x]);
+      }
+      a[bx] = mx ? 1 : 0;
+      l[bx] = mn ? 1 : 0;
+    }
+  }
+}
 
 Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   if (c.n_features < 1 || c.n_features > kMaxKeypoints)
@@ -82,7 +125,11 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   organ_prefix_.assign(static_cast<std::size_t>(width) + 1, 0);
   blocks_x_ = ceil_div(width, kBlock);
   blocks_y_ = ceil_div(height, kBlock);
-  block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 3, 0);
+  block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 5, 0);
+  span_rows_.assign(static_cast<std::size_t>(blocks_y_) * 2, 0);
+  span_cols_.assign(static_cast<std::size_t>(blocks_x_) * 2, 0);
+  row_max_.assign(static_cast<std::size_t>(kMaxImageWidth), 0);  // masks up to kMaxImageWidth wide
+  row_min_.assign(static_cast<std::size_t>(kMaxImageWidth), 0);
   chunk_ok_.assign(static_cast<std::size_t>(height) * (ceil_div(width, kBlock) + 1), 0);
   chunk_relaxed_.assign(chunk_ok_.size(), 0);
   smooth_tiles_.assign(static_cast<std::size_t>(ceil_div(width, ImagePyramid::kSmoothTilePx)) *
@@ -118,54 +165,43 @@ void OrbExtractor::prepare_masks(GrayView organ, GrayView valid) {
   use_chunks_ = !organ_.empty() || !valid_.empty();
   allowed_fraction_ = 1.f;
   if (!use_chunks_) return;
+  // block_ok_: [0] allowed (some pixel inside both masks, by block), [1]
+  // all inside both, [2] full (see below), [3..4] per-mask scratch.
   const std::size_t nb = static_cast<std::size_t>(blocks_x_) * blocks_y_;
-  std::uint8_t* b_organ = block_ok_.data();
-  std::uint8_t* b_valid = block_ok_.data() + nb;
-  std::fill(b_organ, b_organ + nb, organ_.empty() ? 1 : 0);
-  std::fill(b_valid, b_valid + nb, valid_.empty() ? 1 : 0);
-  if (!organ_.empty()) mark_blocks(organ_, width_, height_, blocks_x_, b_organ);
-  if (!valid_.empty()) mark_blocks(valid_, width_, height_, blocks_x_, b_valid);
-  int allowed = 0;
-  for (std::size_t i = 0; i < nb; ++i) {
-    b_organ[i] = static_cast<std::uint8_t>(b_organ[i] & b_valid[i]);
-    allowed += b_organ[i];
+  std::uint8_t* ok = block_ok_.data();
+  std::uint8_t* all = ok + nb;
+  std::uint8_t* any2 = ok + 3 * nb;
+  std::uint8_t* all2 = ok + 4 * nb;
+  std::fill(ok, ok + 2 * nb, 1);
+  for (GrayView m : {organ_, valid_}) {
+    if (m.empty()) continue;
+    block_any_all(m, any2, all2);
+    for (std::size_t i = 0; i < nb; ++i) {
+      ok[i] &= any2[i];
+      all[i] &= all2[i];
+    }
   }
+  int allowed = 0;
+  for (std::size_t i = 0; i < nb; ++i) allowed += ok[i];
   allowed_fraction_ = static_cast<float>(allowed) / static_cast<float>(nb);
   mark_full_blocks();
 }
 
-// block_full_: blocks whose 3x3 block neighbourhood is entirely inside both
-// masks. A FAST circle (radius <= 3 * scale < 16 px for scale < 5.3) centred
-// in such a block lies inside, so inside_masks() can answer at once.
+// Full blocks: whose 3x3 block neighbourhood is entirely inside both masks.
+// A FAST circle (radius <= 3 * scale < 16 px for scale < 5.3) centred in
+// such a block lies inside, so inside_masks() can answer at once.
 void OrbExtractor::mark_full_blocks() {
   const std::size_t nb = static_cast<std::size_t>(blocks_x_) * blocks_y_;
+  const std::uint8_t* all = block_ok_.data() + nb;
   std::uint8_t* full = block_ok_.data() + 2 * nb;
   std::fill(full, full + nb, 0);
   if (pyramid_.scale(pyramid_.levels() - 1) * 3.f >= static_cast<float>(kBlock)) return;
-  std::uint8_t* tmp = block_ok_.data() + nb;  // block-level "all inside"
-  std::fill(tmp, tmp + nb, 1);
-  auto clear_blocks = [&](GrayView m) {
-    for (int my = 0; my < m.height; ++my) {
-      const std::uint8_t* row = m.row(my);
-      const int y0 = static_cast<int>(static_cast<std::int64_t>(my) * height_ / m.height) / kBlock;
-      const int y1 = static_cast<int>((static_cast<std::int64_t>(my + 1) * height_ - 1) / m.height) / kBlock;
-      for (int mx = 0; mx < m.width; ++mx) {
-        if (row[mx]) continue;
-        const int x0 = static_cast<int>(static_cast<std::int64_t>(mx) * width_ / m.width) / kBlock;
-        const int x1 = static_cast<int>((static_cast<std::int64_t>(mx + 1) * width_ - 1) / m.width) / kBlock;
-        for (int by = y0; by <= y1; ++by)
-          for (int bx = x0; bx <= x1; ++bx) tmp[by * blocks_x_ + bx] = 0;
-      }
-    }
-  };
-  if (!organ_.empty()) clear_blocks(organ_);
-  if (!valid_.empty()) clear_blocks(valid_);
   for (int by = 1; by + 1 < blocks_y_; ++by)
     for (int bx = 1; bx + 1 < blocks_x_; ++bx) {
-      std::uint8_t all = 1;
+      std::uint8_t a = 1;
       for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) all &= tmp[(by + dy) * blocks_x_ + bx + dx];
-      full[by * blocks_x_ + bx] = all;
+        for (int dx = -1; dx <= 1; ++dx) a &= all[(by + dy) * blocks_x_ + bx + dx];
+      full[by * blocks_x_ + bx] = a;
     }
 }
 
@@ -456,6 +492,8 @@ void OrbExtractor::describe(int level, int n, FeatureSet& out) {
 bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_mask, FeatureSet& out) {
   out.clear();
   stats_ = OrbFrameStats{};
+  for (GrayView m : {organ_mask, valid_mask})
+    if (m.width > kMaxImageWidth || m.height > kMaxImageHeight) return false;
   if (!pyramid_.build_levels(image)) return false;  // smoothing: per level, kept patches only
   out.width = width_;
   out.height = height_;

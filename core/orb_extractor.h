@@ -69,7 +69,8 @@ class OrbExtractor {
 
   // Detects and describes keypoints of image (width x height as configured)
   // into out (keypoints in level-0 pixels). Allocates nothing. Returns false
-  // (and out.count = 0) if the image size does not match the configuration.
+  // (and out.count = 0) if the image size does not match the configuration
+  // or a mask is larger than kMaxImageWidth x kMaxImageHeight.
   bool extract(GrayView image, GrayView organ_mask_or_empty, GrayView valid_mask_or_empty,
                FeatureSet& out);
 
@@ -88,6 +89,7 @@ class OrbExtractor {
     std::uint16_t rank;   // order inside its spreading cell by key (0 = best), capped at 65535
   };
   void prepare_masks(GrayView organ, GrayView valid);
+  void block_any_all(GrayView mask, std::uint8_t* any, std::uint8_t* all);
   void mark_full_blocks();
   void build_chunk_map(int level);
   bool inside_masks(int level, int x, int y) const;
@@ -113,7 +115,9 @@ class OrbExtractor {
   std::vector<std::uint8_t> organ_tmp_;                // morph_square scratch: rows
   std::vector<std::int32_t> organ_counts_, organ_prefix_;  // and counts
   std::vector<std::uint8_t> block_ok_;       // per 16x16 level-0 block: [0] any allowed pixel,
-                                             // [1] scratch, [2] neighbourhood fully allowed
+                                             // [1] all allowed, [2] neighbourhood fully allowed, [3..4] scratch
+  std::vector<std::int32_t> span_rows_, span_cols_;  // block_any_all(): mask span per block row / column
+  std::vector<std::uint8_t> row_max_, row_min_;      // block_any_all(): one block row of the mask reduced
   std::vector<std::uint8_t> chunk_ok_;       // per level: rows x 16-pixel chunks
   std::vector<std::uint8_t> chunk_relaxed_;  // chunks the relaxed pass scores (same layout)
   std::vector<std::uint8_t> smooth_tiles_;   // per level: 32x32 tiles that need smoothing
