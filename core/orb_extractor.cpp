@@ -135,6 +135,8 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   smooth_tiles_.assign(static_cast<std::size_t>(ceil_div(width, ImagePyramid::kSmoothTilePx)) *
                            ceil_div(height, ImagePyramid::kSmoothTilePx), 0);
   rank_count_.assign(cap + 1, 0);
+  // Relaxed cascade: halfway between strict and relaxed, then relaxed.
+  relaxed_cascade_ = {(c.fast_threshold_strict + c.fast_threshold_relaxed) / 2, c.fast_threshold_relaxed};
   {
     const std::size_t scells = static_cast<std::size_t>(ceil_div(width, c.min_spread_cell_px)) *
                                ceil_div(height, c.min_spread_cell_px);
@@ -319,13 +321,13 @@ void OrbExtractor::build_relaxed_chunk_map(int level) {
 
 // Pass 2 (relaxed threshold, only where needed): appends corners that are
 // not strict, lie in a cell without a strict corner and inside the masks.
-int OrbExtractor::filter_relaxed(int level, int n_fast, int n) {
+int OrbExtractor::filter_relaxed(int level, int n_fast, int n, int max_score) {
   const GrayView img = pyramid_.level(level);
   const int cell = config_.threshold_cell_px;
   const int cells_x = ceil_div(img.width, cell);
   for (int i = 0; i < n_fast; ++i) {
     const FastCorner& c = fast_out_[static_cast<std::size_t>(i)];
-    if (c.score > config_.fast_threshold_strict) continue;  // already in pass 1 (or masked)
+    if (c.score > max_score) continue;  // found by an earlier pass (or masked there)
     const std::uint32_t ci = static_cast<std::uint32_t>((c.y / cell) * cells_x + c.x / cell);
     if (cell_has_strict_[ci]) continue;
     if (relaxed_cell_px_ > 0) {  // closed spreading cell: it could not be kept
@@ -510,16 +512,22 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
     const int n_strict = fast_.detect(img, config_.fast_threshold_strict, config_.edge_border_px,
                                       use_chunks_ ? chunk_ok_.data() : nullptr, chunks,
                                       fast_out_.data(), capacity);
-    const int n1 = filter_strict(k, n_strict);
-    int n_kept = n1;
+    int n_kept = filter_strict(k, n_strict);
     int n_relaxed = 0;
-    // Relaxed corners only where they could survive the first spreading.
-    if (config_.fast_threshold_relaxed < config_.fast_threshold_strict &&
-        close_spread_cells(k, n1, 2 * level_target_[k])) {
+    // Relaxed corners only where they could survive the first spreading,
+    // in a cascade of descending thresholds: each pass scans only the
+    // spreading cells the corners found so far leave open, and adds corners
+    // scoring at most the previous threshold.
+    int prev_threshold = config_.fast_threshold_strict;
+    for (const int t : relaxed_cascade_) {
+      if (t >= prev_threshold) continue;
+      if (!close_spread_cells(k, n_kept, 2 * level_target_[k])) break;
       build_relaxed_chunk_map(k);
-      n_relaxed = fast_.detect(img, config_.fast_threshold_relaxed, config_.edge_border_px,
-                               chunk_relaxed_.data(), chunks, fast_out_.data(), capacity);
-      n_kept = filter_relaxed(k, n_relaxed, n1);
+      const int n_raw = fast_.detect(img, t, config_.edge_border_px, chunk_relaxed_.data(), chunks,
+                                     fast_out_.data(), capacity);
+      n_relaxed += n_raw;
+      n_kept = filter_relaxed(k, n_raw, n_kept, prev_threshold);
+      prev_threshold = t;
     }
     stats_.fast_corners += n_strict + n_relaxed;
     stats_.masked_corners += n_kept;

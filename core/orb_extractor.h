@@ -97,7 +97,7 @@ class OrbExtractor {
   int spread_cell_px(int level, int target) const;
   bool close_spread_cells(int level, int n, int target);
   void build_relaxed_chunk_map(int level);
-  int filter_relaxed(int level, int n_fast, int n);
+  int filter_relaxed(int level, int n_fast, int n, int max_score);
   int spread(int level, int n, int target);
   void harris_keys(int level, int n);
   void smooth_patches(int level, int n);
@@ -126,6 +126,7 @@ class OrbExtractor {
   std::vector<std::int32_t> spread_count_;   // per spreading cell: strict corners
   std::vector<std::uint8_t> spread_open_;    // per spreading cell: a relaxed corner could still be kept
   std::vector<std::uint8_t> spread_open_chunks_;  // per 16-pixel chunk of one row: touches an open cell
+  std::array<int, 2> relaxed_cascade_{};     // thresholds of the relaxed passes, descending
   int relaxed_cell_px_ = 0;                  // spreading cell size of the closed map (0: all open)
   GrayView organ_;                           // dilated organ mask of this frame (or empty)
   GrayView valid_;                           // valid mask of this frame (or empty)
