@@ -9,7 +9,10 @@
 // the strict threshold with scores -> keep corners inside the organ mask
 // (dilated by organ_margin_px) and the valid mask (centre and all 16 FAST
 // circle pixels) -> FAST at the relaxed threshold only in threshold cells
-// without a strict corner (ORB-SLAM2's rule) -> spread to twice the level's target count
+// without a strict corner (ORB-SLAM2's rule), as a cascade (halfway
+// threshold, then relaxed) that scans only spreading cells where a weaker
+// corner could still be kept (exact: same selection as scanning everywhere)
+// -> spread to twice the level's target count
 // with a grid (best FAST score per cell first, then second best, ...) ->
 // Harris response (7x7) of those -> spread again by Harris response to the
 // target (cv::ORB also ranks by Harris: it is more repeatable) -> intensity
