@@ -28,14 +28,14 @@ int best_arc_min(const int* d) {
 
 #if CV_SIMD128
 // best_arc_min for 16 pixels: d[0..15] are the per-lane circle differences
-// (saturated at 0), the arcs wrap around.
+// (saturated at 0), the arcs wrap around: 4 x 16 minima and 15 maxima.
 cv::v_uint8x16 best_arc_min_simd(const cv::v_uint8x16* d) {
-  cv::v_uint8x16 m2[22], m4[20], m8[16];
-  for (int i = 0; i < 22; ++i) m2[i] = cv::v_min(d[i & 15], d[(i + 1) & 15]);
-  for (int i = 0; i < 20; ++i) m4[i] = cv::v_min(m2[i], m2[i + 2]);
-  for (int i = 0; i < 16; ++i) m8[i] = cv::v_min(m4[i], m4[i + 4]);
-  cv::v_uint8x16 best = cv::v_min(m8[0], d[8]);
-  for (int i = 1; i < 16; ++i) best = cv::v_max(best, cv::v_min(m8[i], d[(i + 8) & 15]));
+  cv::v_uint8x16 m2[16], m4[16];
+  for (int i = 0; i < 16; ++i) m2[i] = cv::v_min(d[i], d[(i + 1) & 15]);
+  for (int i = 0; i < 16; ++i) m4[i] = cv::v_min(m2[i], m2[(i + 2) & 15]);
+  cv::v_uint8x16 best = cv::v_setzero_u8();
+  for (int i = 0; i < 16; ++i)
+    best = cv::v_max(best, cv::v_min(cv::v_min(m4[i], m4[(i + 4) & 15]), d[(i + 8) & 15]));
   return best;
 }
 #endif
@@ -69,8 +69,12 @@ namespace {
 
 // Scores 16 pixels q[0..15] (lanes outside lane_keep ignored); appends
 // corners (score > threshold) to scores/xs. The cheap pre-test (a 9-arc holds
-// one of circle pixels {0, 8} and one of {4, 12}) is run per polarity, and
-// only the polarity that can pass is scored.
+// two neighbouring compass pixels {0, 4, 8, 12}) picks each lane's polarity:
+// a lane that can only be a dark corner is scored on inverted intensities
+// (x ^ 0xFF), so one pass scores both kinds of lanes. Only if some lane could
+// be both is the dark polarity scored again for all lanes. The score of a
+// lane is max(bright, dark); a polarity failing its pre-test is <= threshold,
+// so leaving it out never changes a corner's score.
 void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int threshold, int x,
                    unsigned lane_keep, std::uint8_t* scores, std::uint16_t* xs, int* n) {
   const cv::v_uint8x16 tv = cv::v_setall_u8(static_cast<std::uint8_t>(threshold));
@@ -78,17 +82,18 @@ void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int thresho
   const cv::v_uint8x16 hi = v + tv, lo = v - tv;  // saturating
   const cv::v_uint8x16 c0 = cv::v_load(q + off[0]), c4 = cv::v_load(q + off[4]);
   const cv::v_uint8x16 c8 = cv::v_load(q + off[8]), c12 = cv::v_load(q + off[12]);
-  const bool any_bright = cv::v_check_any(((c0 > hi) | (c8 > hi)) & ((c4 > hi) | (c12 > hi)));
-  const bool any_dark = cv::v_check_any(((c0 < lo) | (c8 < lo)) & ((c4 < lo) | (c12 < lo)));
-  if (!any_bright && !any_dark) return;
+  const cv::v_uint8x16 bright = ((c0 > hi) | (c8 > hi)) & ((c4 > hi) | (c12 > hi));
+  const cv::v_uint8x16 dark = ((c0 < lo) | (c8 < lo)) & ((c4 < lo) | (c12 < lo));
+  if (!cv::v_check_any(bright | dark)) return;
   cv::v_uint8x16 d[16];
-  cv::v_uint8x16 score = cv::v_setzero_u8();
-  if (any_bright) {
-    for (int i = 0; i < 16; ++i) d[i] = cv::v_load(q + off[i]) - v;  // saturating: 0 where not brighter
-    score = best_arc_min_simd(d);
-  }
-  if (any_dark) {
-    for (int i = 0; i < 16; ++i) d[i] = v - cv::v_load(q + off[i]);
+  // Lanes that can only be dark: inverted.
+  const cv::v_uint8x16 flip = dark & ~bright;
+  const cv::v_uint8x16 vf = v ^ flip;
+  for (int i = 0; i < 16; ++i) d[i] = (cv::v_load(q + off[i]) ^ flip) - vf;  // saturating
+  cv::v_uint8x16 score = best_arc_min_simd(d);
+  if (cv::v_check_any(bright & dark)) {
+    const cv::v_uint8x16 vi = ~v;
+    for (int i = 0; i < 16; ++i) d[i] = ~cv::v_load(q + off[i]) - vi;
     score = cv::v_max(score, best_arc_min_simd(d));
   }
   // A lane is a corner iff its score exceeds the threshold.

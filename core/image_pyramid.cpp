@@ -60,6 +60,11 @@ void blur_vertical(const std::uint8_t* const r[7], std::uint8_t* out, int width)
   for (; x + 16 <= width; x += 16) {
     blur7_store(out + x, [&](int i) { return cv::v_load(r[i] + x); });
   }
+  if (x < width && width >= 16) {  // tail: one block overlapping the last one
+    x = width - 16;
+    blur7_store(out + x, [&](int i) { return cv::v_load(r[i] + x); });
+    x = width;
+  }
 #endif
   for (; x < width; ++x) {
     const int s = kBlurW0 * r[3][x] + kBlurW1 * (r[2][x] + r[4][x]) +
@@ -75,6 +80,11 @@ void blur_horizontal(const std::uint8_t* p, std::uint8_t* out, int width) {
 #if CV_SIMD128
   for (; x + 16 <= width; x += 16) {
     blur7_store(out + x, [&](int i) { return cv::v_load(p + x + i - 3); });
+  }
+  if (x < width && width >= 16) {  // tail: one block overlapping the last one
+    x = width - 16;
+    blur7_store(out + x, [&](int i) { return cv::v_load(p + x + i - 3); });
+    x = width;
   }
 #endif
   for (; x < width; ++x) {
@@ -205,18 +215,27 @@ bool ImagePyramid::build(GrayView image) {
   return true;
 }
 
-// Same passes as gaussian_blur7, restricted to one tile: the vertical pass
-// covers the tile's columns plus 3 on each side (replicated at the level's
-// edges, as the whole-level blur does), so the result is identical.
+// Same passes as gaussian_blur7, restricted to runs of consecutive marked
+// tiles of a tile row: the vertical pass covers the run's columns plus 3 on
+// each side (replicated at the level's edges, as the whole-level blur does),
+// so the result is identical.
 void ImagePyramid::smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x) {
   const GrayView src = levels_img_[k].cview();
   const ImageView<std::uint8_t> dst = smooth_img_[k].view();
   const int w = src.width, h = src.height;
-  std::uint8_t* p_base = blur_tmp_.data() + 3;  // p_base[i] = column x0 + i of the tile
+  const int n_tx = std::min(tiles_x, (w + kSmoothTilePx - 1) / kSmoothTilePx);
+  std::uint8_t* p_base = blur_tmp_.data() + 3;  // p_base[i] = column x0 + i of the run
   for (int ty = 0; ty * kSmoothTilePx < h; ++ty) {
-    for (int tx = 0; tx < tiles_x && tx * kSmoothTilePx < w; ++tx) {
-      if (!tiles[ty * tiles_x + tx]) continue;
-      const int x0 = tx * kSmoothTilePx, x1 = std::min(x0 + kSmoothTilePx, w);
+    const std::uint8_t* trow = tiles + static_cast<std::ptrdiff_t>(ty) * tiles_x;
+    for (int tx = 0; tx < n_tx;) {
+      if (!trow[tx]) {
+        ++tx;
+        continue;
+      }
+      int tx_end = tx + 1;
+      while (tx_end < n_tx && trow[tx_end]) ++tx_end;
+      const int x0 = tx * kSmoothTilePx, x1 = std::min(tx_end * kSmoothTilePx, w);
+      tx = tx_end;
       const int cx0 = std::max(x0 - 3, 0), cx1 = std::min(x1 + 3, w);
       const int y1 = std::min((ty + 1) * kSmoothTilePx, h);
       for (int y = ty * kSmoothTilePx; y < y1; ++y) {

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <numbers>
 
+#include <opencv2/core/hal/intrin.hpp>
+
 namespace st {
 namespace {
 
@@ -75,7 +77,10 @@ OrbDescriptor::OrbDescriptor() {
   }
 }
 
-float OrbDescriptor::orientation_deg(GrayView level, int x, int y) {
+namespace {
+
+// The disc moments m10 = sum dx * I, m01 = sum dy * I (integers).
+void moments_scalar(GrayView level, int x, int y, int* m10_out, int* m01_out) {
   int m10 = 0, m01 = 0;
   const std::uint8_t* c = level.row(y) + x;
   for (int dx = -kOrbPatchRadius; dx <= kOrbPatchRadius; ++dx) m10 += dx * c[dx];
@@ -91,6 +96,70 @@ float OrbDescriptor::orientation_deg(GrayView level, int x, int y) {
     m01 += dy * diff;
     m10 += sum_x;
   }
+  *m10_out = m10;
+  *m01_out = m01;
+}
+
+#if CV_SIMD128
+// Per row offset dy: the weights of the 32 columns dx = -16..15 for m10 (dx
+// inside the disc row, else 0) and m01 (dy inside, else 0), int16.
+struct MomentWeights {
+  alignas(16) std::int16_t wx[kOrbPatchRadius + 1][32];
+  alignas(16) std::int16_t wy[kOrbPatchRadius + 1][32];
+  MomentWeights() {
+    for (int dy = 0; dy <= kOrbPatchRadius; ++dy)
+      for (int i = 0; i < 32; ++i) {
+        const int dx = i - 16;
+        const bool in = dx >= -kDisc.half[dy] && dx <= kDisc.half[dy];
+        wx[dy][i] = static_cast<std::int16_t>(in ? dx : 0);
+        wy[dy][i] = static_cast<std::int16_t>(in ? dy : 0);
+      }
+  }
+};
+const MomentWeights kWeights;
+
+// Same sums as moments_scalar, 32 columns per row pair: (dn + up) and
+// (dn - up) fit int16 (<= 510), products with the weights are summed in
+// int32 by v_dotprod. Reads columns x - 16 .. x + 15.
+void moments_simd(GrayView level, int x, int y, int* m10_out, int* m01_out) {
+  cv::v_int32x4 a10 = cv::v_setzero_s32(), a01 = cv::v_setzero_s32();
+  const std::uint8_t* c = level.row(y) + x - 16;
+  for (int dy = 0; dy <= kOrbPatchRadius; ++dy) {
+    const std::uint8_t* dn = c + dy * level.stride;
+    cv::v_uint16x8 d[4], u[4];
+    cv::v_expand(cv::v_load(dn), d[0], d[1]);
+    cv::v_expand(cv::v_load(dn + 16), d[2], d[3]);
+    if (dy == 0) {
+      for (int i = 0; i < 4; ++i) u[i] = cv::v_setzero_u16();
+    } else {
+      const std::uint8_t* up = c - dy * level.stride;
+      cv::v_expand(cv::v_load(up), u[0], u[1]);
+      cv::v_expand(cv::v_load(up + 16), u[2], u[3]);
+    }
+    for (int i = 0; i < 4; ++i) {
+      const cv::v_int16x8 sum = cv::v_reinterpret_as_s16(d[i] + u[i]);
+      const cv::v_int16x8 diff = cv::v_reinterpret_as_s16(d[i]) - cv::v_reinterpret_as_s16(u[i]);
+      a10 += cv::v_dotprod(sum, cv::v_load(kWeights.wx[dy] + 8 * i));
+      a01 += cv::v_dotprod(diff, cv::v_load(kWeights.wy[dy] + 8 * i));
+    }
+  }
+  *m10_out = cv::v_reduce_sum(a10);
+  *m01_out = cv::v_reduce_sum(a01);
+}
+#endif
+
+}  // namespace
+
+float OrbDescriptor::orientation_deg(GrayView level, int x, int y) {
+  int m10 = 0, m01 = 0;
+#if CV_SIMD128
+  if (x >= 16 && x + 16 <= level.width)  // the 32-column loads stay inside the row
+    moments_simd(level, x, y, &m10, &m01);
+  else
+    moments_scalar(level, x, y, &m10, &m01);
+#else
+  moments_scalar(level, x, y, &m10, &m01);
+#endif
   float a = std::atan2(static_cast<float>(m01), static_cast<float>(m10)) *
             (180.0f / std::numbers::pi_v<float>);
   if (a < 0.f) a += 360.f;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <initializer_list>
 #include <string>
 
 namespace st {
@@ -22,23 +23,65 @@ inline int to_mask(float v0, int mask_n, int image_n) {
   return m;
 }
 
-// Marks every 16x16 level-0 block touched by a non-zero pixel of mask.
-void mark_blocks(GrayView mask, int width, int height, int blocks_x, std::uint8_t* blocks) {
-  for (int my = 0; my < mask.height; ++my) {
-    const std::uint8_t* row = mask.row(my);
-    const int y0 = static_cast<int>(static_cast<std::int64_t>(my) * height / mask.height) / kBlock;
-    const int y1 = static_cast<int>((static_cast<std::int64_t>(my + 1) * height - 1) / mask.height) / kBlock;
-    for (int mx = 0; mx < mask.width; ++mx) {
-      if (!row[mx]) continue;
-      const int x0 = static_cast<int>(static_cast<std::int64_t>(mx) * width / mask.width) / kBlock;
-      const int x1 = static_cast<int>((static_cast<std::int64_t>(mx + 1) * width - 1) / mask.width) / kBlock;
-      for (int by = y0; by <= y1; ++by)
-        for (int bx = x0; bx <= x1; ++bx) blocks[by * blocks_x + bx] = 1;
+// For every 16-pixel block along one axis: the first and last mask index
+// whose pixel (covering image pixels [m * image_n / mask_n, ((m + 1) *
+// image_n - 1) / mask_n]) touches it; lo > hi if none does.
+void block_spans(int mask_n, int image_n, int blocks, std::int32_t* lo, std::int32_t* hi) {
+  std::fill(lo, lo + blocks, mask_n);
+  std::fill(hi, hi + blocks, -1);
+  for (int m = 0; m < mask_n; ++m) {
+    const int b0 = static_cast<int>(static_cast<std::int64_t>(m) * image_n / mask_n) / kBlock;
+    const int b1 = static_cast<int>((static_cast<std::int64_t>(m + 1) * image_n - 1) / mask_n) / kBlock;
+    for (int b = b0; b <= std::min(b1, blocks - 1); ++b) {
+      lo[b] = std::min(lo[b], m);
+      hi[b] = std::max(hi[b], m);
     }
   }
 }
 
 }  // namespace
+
+// Per 16x16 level-0 block: any[b] = some mask pixel touching it is set,
+// all[b] = every one is (1 if none touches it). Rows of a block are reduced
+// first (max / min over contiguous rows vectorise), then the columns.
+void OrbExtractor::block_any_all(GrayView mask, std::uint8_t* any, std::uint8_t* all) {
+  std::int32_t* ylo = span_rows_.data();
+  std::int32_t* yhi = ylo + blocks_y_;
+  std::int32_t* xlo = span_cols_.data();
+  std::int32_t* xhi = xlo + blocks_x_;
+  block_spans(mask.height, height_, blocks_y_, ylo, yhi);
+  block_spans(mask.width, width_, blocks_x_, xlo, xhi);
+  std::uint8_t* rmax = row_max_.data();
+  std::uint8_t* rmin = row_min_.data();
+  const int w = mask.width;
+  for (int by = 0; by < blocks_y_; ++by) {
+    std::uint8_t* a = any + static_cast<std::ptrdiff_t>(by) * blocks_x_;
+    std::uint8_t* l = all + static_cast<std::ptrdiff_t>(by) * blocks_x_;
+    if (ylo[by] > yhi[by]) {
+      std::fill(a, a + blocks_x_, 0);
+      std::fill(l, l + blocks_x_, 1);
+      continue;
+    }
+    std::memcpy(rmax, mask.row(ylo[by]), static_cast<std::size_t>(w));
+    std::memcpy(rmin, mask.row(ylo[by]), static_cast<std::size_t>(w));
+    for (int y = ylo[by] + 1; y <= yhi[by]; ++y) {
+      const std::uint8_t* r = mask.row(y);
+      for (int x = 0; x < w; ++x) {
+        rmax[x] = std::max(rmax[x], r[x]);
+        rmin[x] = std::min(rmin[x], r[x]);
+      }
+    }
+    for (int bx = 0; bx < blocks_x_; ++bx) {
+      std::uint8_t mx = 0, mn = 255;
+      for (int x = xlo[bx]; x <= xhi[bx]; ++x) {
+        mx = std::max(mx, rmax[x]);
+        mn = std::min(mn, rmin[x]);
+      }
+      a[bx] = mx ? 1 : 0;
+      l[bx] = mn ? 1 : 0;
+    }
+  }
+}
 
 Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   if (c.n_features < 1 || c.n_features > kMaxKeypoints)
@@ -82,11 +125,25 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   organ_prefix_.assign(static_cast<std::size_t>(width) + 1, 0);
   blocks_x_ = ceil_div(width, kBlock);
   blocks_y_ = ceil_div(height, kBlock);
-  block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 3, 0);
+  block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 5, 0);
+  span_rows_.assign(static_cast<std::size_t>(blocks_y_) * 2, 0);
+  span_cols_.assign(static_cast<std::size_t>(blocks_x_) * 2, 0);
+  row_max_.assign(static_cast<std::size_t>(kMaxImageWidth), 0);  // masks up to kMaxImageWidth wide
+  row_min_.assign(static_cast<std::size_t>(kMaxImageWidth), 0);
   chunk_ok_.assign(static_cast<std::size_t>(height) * (ceil_div(width, kBlock) + 1), 0);
   chunk_relaxed_.assign(chunk_ok_.size(), 0);
   smooth_tiles_.assign(static_cast<std::size_t>(ceil_div(width, ImagePyramid::kSmoothTilePx)) *
                            ceil_div(height, ImagePyramid::kSmoothTilePx), 0);
+  rank_count_.assign(cap + 1, 0);
+  // Relaxed cascade: halfway between strict and relaxed, then relaxed.
+  relaxed_cascade_ = {(c.fast_threshold_strict + c.fast_threshold_relaxed) / 2, c.fast_threshold_relaxed};
+  {
+    const std::size_t scells = static_cast<std::size_t>(ceil_div(width, c.min_spread_cell_px)) *
+                               ceil_div(height, c.min_spread_cell_px);
+    spread_count_.assign(scells, 0);
+    spread_open_.assign(scells, 0);
+  }
+  spread_open_chunks_.assign(static_cast<std::size_t>(ceil_div(width, kBlock)) + 1, 0);
   cell_need_.assign(static_cast<std::size_t>(ceil_div(height, c.threshold_cell_px) + 1) *
                         (ceil_div(width, kBlock) + 1), 0);
   return Status::Ok();
@@ -110,54 +167,43 @@ void OrbExtractor::prepare_masks(GrayView organ, GrayView valid) {
   use_chunks_ = !organ_.empty() || !valid_.empty();
   allowed_fraction_ = 1.f;
   if (!use_chunks_) return;
+  // block_ok_: [0] allowed (some pixel inside both masks, by block), [1]
+  // all inside both, [2] full (see below), [3..4] per-mask scratch.
   const std::size_t nb = static_cast<std::size_t>(blocks_x_) * blocks_y_;
-  std::uint8_t* b_organ = block_ok_.data();
-  std::uint8_t* b_valid = block_ok_.data() + nb;
-  std::fill(b_organ, b_organ + nb, organ_.empty() ? 1 : 0);
-  std::fill(b_valid, b_valid + nb, valid_.empty() ? 1 : 0);
-  if (!organ_.empty()) mark_blocks(organ_, width_, height_, blocks_x_, b_organ);
-  if (!valid_.empty()) mark_blocks(valid_, width_, height_, blocks_x_, b_valid);
-  int allowed = 0;
-  for (std::size_t i = 0; i < nb; ++i) {
-    b_organ[i] = static_cast<std::uint8_t>(b_organ[i] & b_valid[i]);
-    allowed += b_organ[i];
+  std::uint8_t* ok = block_ok_.data();
+  std::uint8_t* all = ok + nb;
+  std::uint8_t* any2 = ok + 3 * nb;
+  std::uint8_t* all2 = ok + 4 * nb;
+  std::fill(ok, ok + 2 * nb, 1);
+  for (GrayView m : {organ_, valid_}) {
+    if (m.empty()) continue;
+    block_any_all(m, any2, all2);
+    for (std::size_t i = 0; i < nb; ++i) {
+      ok[i] &= any2[i];
+      all[i] &= all2[i];
+    }
   }
+  int allowed = 0;
+  for (std::size_t i = 0; i < nb; ++i) allowed += ok[i];
   allowed_fraction_ = static_cast<float>(allowed) / static_cast<float>(nb);
   mark_full_blocks();
 }
 
-// block_full_: blocks whose 3x3 block neighbourhood is entirely inside both
-// masks. A FAST circle (radius <= 3 * scale < 16 px for scale < 5.3) centred
-// in such a block lies inside, so inside_masks() can answer at once.
+// Full blocks: whose 3x3 block neighbourhood is entirely inside both masks.
+// A FAST circle (radius <= 3 * scale < 16 px for scale < 5.3) centred in
+// such a block lies inside, so inside_masks() can answer at once.
 void OrbExtractor::mark_full_blocks() {
   const std::size_t nb = static_cast<std::size_t>(blocks_x_) * blocks_y_;
+  const std::uint8_t* all = block_ok_.data() + nb;
   std::uint8_t* full = block_ok_.data() + 2 * nb;
   std::fill(full, full + nb, 0);
   if (pyramid_.scale(pyramid_.levels() - 1) * 3.f >= static_cast<float>(kBlock)) return;
-  std::uint8_t* tmp = block_ok_.data() + nb;  // block-level "all inside"
-  std::fill(tmp, tmp + nb, 1);
-  auto clear_blocks = [&](GrayView m) {
-    for (int my = 0; my < m.height; ++my) {
-      const std::uint8_t* row = m.row(my);
-      const int y0 = static_cast<int>(static_cast<std::int64_t>(my) * height_ / m.height) / kBlock;
-      const int y1 = static_cast<int>((static_cast<std::int64_t>(my + 1) * height_ - 1) / m.height) / kBlock;
-      for (int mx = 0; mx < m.width; ++mx) {
-        if (row[mx]) continue;
-        const int x0 = static_cast<int>(static_cast<std::int64_t>(mx) * width_ / m.width) / kBlock;
-        const int x1 = static_cast<int>((static_cast<std::int64_t>(mx + 1) * width_ - 1) / m.width) / kBlock;
-        for (int by = y0; by <= y1; ++by)
-          for (int bx = x0; bx <= x1; ++bx) tmp[by * blocks_x_ + bx] = 0;
-      }
-    }
-  };
-  if (!organ_.empty()) clear_blocks(organ_);
-  if (!valid_.empty()) clear_blocks(valid_);
   for (int by = 1; by + 1 < blocks_y_; ++by)
     for (int bx = 1; bx + 1 < blocks_x_; ++bx) {
-      std::uint8_t all = 1;
+      std::uint8_t a = 1;
       for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) all &= tmp[(by + dy) * blocks_x_ + bx + dx];
-      full[by * blocks_x_ + bx] = all;
+        for (int dx = -1; dx <= 1; ++dx) a &= all[(by + dy) * blocks_x_ + bx + dx];
+      full[by * blocks_x_ + bx] = a;
     }
 }
 
@@ -246,42 +292,68 @@ void OrbExtractor::build_relaxed_chunk_map(int level) {
       need[static_cast<std::ptrdiff_t>(cy) * chunks + cx] = n;
     }
   }
+  const int scell = relaxed_cell_px_;
+  const int scells_x = scell > 0 ? ceil_div(img.width, scell) : 0;
+  std::uint8_t* open_chunk = spread_open_chunks_.data();
+  int open_row = -1;
   for (int y = 0; y < img.height; ++y) {
     const std::uint8_t* nrow = need + static_cast<std::ptrdiff_t>(y / cell) * chunks;
     std::uint8_t* out = chunk_relaxed_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
-    if (!use_chunks_) {
-      std::memcpy(out, nrow, static_cast<std::size_t>(chunks));
-      continue;
+    std::memcpy(out, nrow, static_cast<std::size_t>(chunks));
+    if (use_chunks_) {
+      const std::uint8_t* in = chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
+      for (int cx = 0; cx < chunks; ++cx) out[cx] &= in[cx];
     }
-    const std::uint8_t* in = chunk_ok_.data() + static_cast<std::ptrdiff_t>(y) * chunks;
-    for (int cx = 0; cx < chunks; ++cx) out[cx] = static_cast<std::uint8_t>(nrow[cx] & in[cx]);
+    if (scell == 0) continue;
+    if (y / scell != open_row) {  // chunks touching an open spreading cell of this row
+      open_row = y / scell;
+      const std::uint8_t* open = spread_open_.data() + static_cast<std::ptrdiff_t>(open_row) * scells_x;
+      for (int cx = 0; cx < chunks; ++cx) {
+        const int s0 = cx * kBlock / scell, s1 = std::min((cx * kBlock + kBlock - 1) / scell, scells_x - 1);
+        std::uint8_t any = 0;
+        for (int sx = s0; sx <= s1; ++sx) any |= open[sx];
+        open_chunk[cx] = any;
+      }
+    }
+    for (int cx = 0; cx < chunks; ++cx) out[cx] &= open_chunk[cx];
   }
 }
 
 // Pass 2 (relaxed threshold, only where needed): appends corners that are
 // not strict, lie in a cell without a strict corner and inside the masks.
-int OrbExtractor::filter_relaxed(int level, int n_fast, int n) {
+int OrbExtractor::filter_relaxed(int level, int n_fast, int n, int max_score) {
   const GrayView img = pyramid_.level(level);
   const int cell = config_.threshold_cell_px;
   const int cells_x = ceil_div(img.width, cell);
   for (int i = 0; i < n_fast; ++i) {
     const FastCorner& c = fast_out_[static_cast<std::size_t>(i)];
-    if (c.score > config_.fast_threshold_strict) continue;  // already in pass 1 (or masked)
+    if (c.score > max_score) continue;  // found by an earlier pass (or masked there)
     const std::uint32_t ci = static_cast<std::uint32_t>((c.y / cell) * cells_x + c.x / cell);
     if (cell_has_strict_[ci]) continue;
+    if (relaxed_cell_px_ > 0) {  // closed spreading cell: it could not be kept
+      const int sc = relaxed_cell_px_;
+      if (!spread_open_[static_cast<std::size_t>((c.y / sc) * ceil_div(img.width, sc) + c.x / sc)]) continue;
+    }
     if (use_chunks_ && !inside_masks(level, c.x, c.y)) continue;
     cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score, 0};
   }
   return n;
 }
 
+// Spreading cells hold about spread_cell_keypoints of the target over the
+// allowed area (see OrbConfig).
+int OrbExtractor::spread_cell_px(int level, int target) const {
+  const GrayView img = pyramid_.level(level);
+  const float area = static_cast<float>(img.width) * static_cast<float>(img.height) * allowed_fraction_;
+  return std::max(config_.min_spread_cell_px,
+                  static_cast<int>(std::sqrt(area * static_cast<float>(config_.spread_cell_keypoints) /
+                                             static_cast<float>(std::max(target, 1)))));
+}
+
 int OrbExtractor::spread(int level, int n, int target) {
   if (n <= target) return n;
   const GrayView img = pyramid_.level(level);
-  const float area = static_cast<float>(img.width) * static_cast<float>(img.height) * allowed_fraction_;
-  const int cell = std::max(config_.min_spread_cell_px,
-                            static_cast<int>(std::sqrt(area * static_cast<float>(config_.spread_cell_keypoints) /
-                                                             static_cast<float>(target))));
+  const int cell = spread_cell_px(level, target);
   const int cells_x = ceil_div(img.width, cell);
   Candidate* c = cand_.data();
   if (cells_x == 1 && cell >= img.height) {  // one cell: the strongest, in O(n)
@@ -293,14 +365,17 @@ int OrbExtractor::spread(int level, int n, int target) {
     return a.cell != b.cell ? a.cell < b.cell : a.key > b.key;
   });
   // Rank inside each cell; count how many corners each rank holds.
-  int rank_count[256] = {};
+  int max_rank = 0;
   for (int i = 0; i < n; ++i) {
-    const int r = (i > 0 && c[i].cell == c[i - 1].cell) ? std::min(c[i - 1].rank + 1, 255) : 0;
-    c[i].rank = static_cast<std::uint8_t>(r);
-    ++rank_count[r];
+    const int r = (i > 0 && c[i].cell == c[i - 1].cell) ? std::min(c[i - 1].rank + 1, 65535) : 0;
+    c[i].rank = static_cast<std::uint16_t>(r);
+    max_rank = std::max(max_rank, r);
   }
+  std::int32_t* rank_count = rank_count_.data();
+  std::fill(rank_count, rank_count + max_rank + 1, 0);
+  for (int i = 0; i < n; ++i) ++rank_count[c[i].rank];
   int full_ranks = 0, taken = 0;  // ranks taken whole
-  while (full_ranks < 256 && taken + rank_count[full_ranks] <= target) taken += rank_count[full_ranks++];
+  while (full_ranks <= max_rank && taken + rank_count[full_ranks] <= target) taken += rank_count[full_ranks++];
   // Keep ranks < full_ranks; then the strongest of rank full_ranks fill up.
   auto* split = std::partition(c, c + n, [&](const Candidate& a) { return a.rank < full_ranks; });
   auto* rest_end = std::partition(split, c + n, [&](const Candidate& a) { return a.rank == full_ranks; });
@@ -309,6 +384,49 @@ int OrbExtractor::spread(int level, int n, int target) {
     std::nth_element(split, split + fill, rest_end,
                      [](const Candidate& a, const Candidate& b) { return a.key > b.key; });
   return taken + std::max(fill, 0);
+}
+
+// Which spreading cells (of spread(level, .., target)) a relaxed corner could
+// still survive in, given the n strict candidates. A relaxed corner ranks
+// below every strict corner of its cell (its FAST score is <= the strict
+// threshold < theirs), so in a cell with s strict corners its rank is >= s.
+// Adding corners never raises the number of ranks spread() takes whole, so
+// that number computed from the strict corners alone (R) bounds it: cells
+// with s > R are closed, and skipping relaxed corners there changes nothing.
+// Returns false if every cell is closed (no relaxed pass needed).
+bool OrbExtractor::close_spread_cells(int level, int n, int target) {
+  relaxed_cell_px_ = 0;
+  if (n <= target) return true;  // all open: every corner could be kept
+  const GrayView img = pyramid_.level(level);
+  const int cell = spread_cell_px(level, target);
+  const int cells_x = ceil_div(img.width, cell);
+  const int ncells = cells_x * ceil_div(img.height, cell);
+  std::int32_t* count = spread_count_.data();
+  std::fill(count, count + ncells, 0);
+  int max_count = 0;
+  for (int i = 0; i < n; ++i) {
+    const Candidate& c = cand_[static_cast<std::size_t>(i)];
+    const int ci = (c.y / cell) * cells_x + c.x / cell;
+    max_count = std::max(max_count, ++count[ci]);
+  }
+  // hist[s] = cells holding s strict corners; cells with rank r = cells with s > r.
+  std::int32_t* hist = rank_count_.data();
+  std::fill(hist, hist + max_count + 1, 0);
+  for (int i = 0; i < ncells; ++i) ++hist[count[i]];
+  int cells_above = ncells - hist[0];
+  int full_ranks = 0, taken = 0;
+  while (taken + cells_above <= target) {  // ends: the ranks hold n > target corners
+    taken += cells_above;
+    ++full_ranks;
+    cells_above -= hist[full_ranks];
+  }
+  bool any_open = false;
+  for (int i = 0; i < ncells; ++i) {
+    spread_open_[static_cast<std::size_t>(i)] = count[i] <= full_ranks ? 1 : 0;
+    any_open |= count[i] <= full_ranks;
+  }
+  relaxed_cell_px_ = cell;
+  return any_open;
 }
 
 // Harris corner response (k = 0.04) over a 7x7 window of central-difference
@@ -376,6 +494,8 @@ void OrbExtractor::describe(int level, int n, FeatureSet& out) {
 bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_mask, FeatureSet& out) {
   out.clear();
   stats_ = OrbFrameStats{};
+  for (GrayView m : {organ_mask, valid_mask})
+    if (m.width > kMaxImageWidth || m.height > kMaxImageHeight) return false;
   if (!pyramid_.build_levels(image)) return false;  // smoothing: per level, kept patches only
   out.width = width_;
   out.height = height_;
@@ -392,14 +512,22 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
     const int n_strict = fast_.detect(img, config_.fast_threshold_strict, config_.edge_border_px,
                                       use_chunks_ ? chunk_ok_.data() : nullptr, chunks,
                                       fast_out_.data(), capacity);
-    const int n1 = filter_strict(k, n_strict);
-    int n_kept = n1;
+    int n_kept = filter_strict(k, n_strict);
     int n_relaxed = 0;
-    if (config_.fast_threshold_relaxed < config_.fast_threshold_strict) {
+    // Relaxed corners only where they could survive the first spreading,
+    // in a cascade of descending thresholds: each pass scans only the
+    // spreading cells the corners found so far leave open, and adds corners
+    // scoring at most the previous threshold.
+    int prev_threshold = config_.fast_threshold_strict;
+    for (const int t : relaxed_cascade_) {
+      if (t >= prev_threshold) continue;
+      if (!close_spread_cells(k, n_kept, 2 * level_target_[k])) break;
       build_relaxed_chunk_map(k);
-      n_relaxed = fast_.detect(img, config_.fast_threshold_relaxed, config_.edge_border_px,
-                               chunk_relaxed_.data(), chunks, fast_out_.data(), capacity);
-      n_kept = filter_relaxed(k, n_relaxed, n1);
+      const int n_raw = fast_.detect(img, t, config_.edge_border_px, chunk_relaxed_.data(), chunks,
+                                     fast_out_.data(), capacity);
+      n_relaxed += n_raw;
+      n_kept = filter_relaxed(k, n_raw, n_kept, prev_threshold);
+      prev_threshold = t;
     }
     stats_.fast_corners += n_strict + n_relaxed;
     stats_.masked_corners += n_kept;

@@ -9,7 +9,10 @@
 // the strict threshold with scores -> keep corners inside the organ mask
 // (dilated by organ_margin_px) and the valid mask (centre and all 16 FAST
 // circle pixels) -> FAST at the relaxed threshold only in threshold cells
-// without a strict corner (ORB-SLAM2's rule) -> spread to twice the level's target count
+// without a strict corner (ORB-SLAM2's rule), as a cascade (halfway
+// threshold, then relaxed) that scans only spreading cells where a weaker
+// corner could still be kept (exact: same selection as scanning everywhere)
+// -> spread to twice the level's target count
 // with a grid (best FAST score per cell first, then second best, ...) ->
 // Harris response (7x7) of those -> spread again by Harris response to the
 // target (cv::ORB also ranks by Harris: it is more repeatable) -> intensity
@@ -69,7 +72,8 @@ class OrbExtractor {
 
   // Detects and describes keypoints of image (width x height as configured)
   // into out (keypoints in level-0 pixels). Allocates nothing. Returns false
-  // (and out.count = 0) if the image size does not match the configuration.
+  // (and out.count = 0) if the image size does not match the configuration
+  // or a mask is larger than kMaxImageWidth x kMaxImageHeight.
   bool extract(GrayView image, GrayView organ_mask_or_empty, GrayView valid_mask_or_empty,
                FeatureSet& out);
 
@@ -85,15 +89,18 @@ class OrbExtractor {
     float key;            // what spreading ranks by (FAST score, then Harris response)
     std::uint16_t x, y;   // level pixels
     std::uint8_t score;   // FAST score
-    std::uint8_t rank;    // order inside its spreading cell by key (0 = best)
+    std::uint16_t rank;   // order inside its spreading cell by key (0 = best), capped at 65535
   };
   void prepare_masks(GrayView organ, GrayView valid);
+  void block_any_all(GrayView mask, std::uint8_t* any, std::uint8_t* all);
   void mark_full_blocks();
   void build_chunk_map(int level);
   bool inside_masks(int level, int x, int y) const;
   int filter_strict(int level, int n_fast);
+  int spread_cell_px(int level, int target) const;
+  bool close_spread_cells(int level, int n, int target);
   void build_relaxed_chunk_map(int level);
-  int filter_relaxed(int level, int n_fast, int n);
+  int filter_relaxed(int level, int n_fast, int n, int max_score);
   int spread(int level, int n, int target);
   void harris_keys(int level, int n);
   void smooth_patches(int level, int n);
@@ -111,11 +118,19 @@ class OrbExtractor {
   std::vector<std::uint8_t> organ_tmp_;                // morph_square scratch: rows
   std::vector<std::int32_t> organ_counts_, organ_prefix_;  // and counts
   std::vector<std::uint8_t> block_ok_;       // per 16x16 level-0 block: [0] any allowed pixel,
-                                             // [1] scratch, [2] neighbourhood fully allowed
+                                             // [1] all allowed, [2] neighbourhood fully allowed, [3..4] scratch
+  std::vector<std::int32_t> span_rows_, span_cols_;  // block_any_all(): mask span per block row / column
+  std::vector<std::uint8_t> row_max_, row_min_;      // block_any_all(): one block row of the mask reduced
   std::vector<std::uint8_t> chunk_ok_;       // per level: rows x 16-pixel chunks
   std::vector<std::uint8_t> chunk_relaxed_;  // chunks the relaxed pass scores (same layout)
   std::vector<std::uint8_t> smooth_tiles_;   // per level: 32x32 tiles that need smoothing
   std::vector<std::uint8_t> cell_need_;      // per threshold-cell row x chunk: any cell without strict
+  std::vector<std::int32_t> rank_count_;     // spread(): corners per rank (one per candidate at most)
+  std::vector<std::int32_t> spread_count_;   // per spreading cell: strict corners
+  std::vector<std::uint8_t> spread_open_;    // per spreading cell: a relaxed corner could still be kept
+  std::vector<std::uint8_t> spread_open_chunks_;  // per 16-pixel chunk of one row: touches an open cell
+  std::array<int, 2> relaxed_cascade_{};     // thresholds of the relaxed passes, descending
+  int relaxed_cell_px_ = 0;                  // spreading cell size of the closed map (0: all open)
   GrayView organ_;                           // dilated organ mask of this frame (or empty)
   GrayView valid_;                           // valid mask of this frame (or empty)
   int blocks_x_ = 0, blocks_y_ = 0;

@@ -147,24 +147,48 @@ GrayView ValidMaskBuilder::build(GrayView frame) {
   if (frame.empty() || frame.width != width_ || frame.height != height_) return GrayView();
   downsample(frame);
   field_stop_spans();
-  int frame_max = 0;
-  for (std::uint8_t v : max_) frame_max = std::max<int>(frame_max, v);
+  std::uint8_t frame_max = 0;
+  for (std::uint8_t v : max_) frame_max = std::max(frame_max, v);
   highlight_thr_ = std::max(config_.highlight_min, frame_max - config_.highlight_band);
+  // Saturated pixels, and the band of rows holding any: highlights are
+  // small, so only that band (plus the dilation radius) is dilated.
+  const std::uint8_t thr = static_cast<std::uint8_t>(std::min(highlight_thr_, 255));
   highlight_pixels_ = 0;
-  for (std::size_t i = 0; i < max_.size(); ++i) {
-    sat_[i] = max_[i] >= highlight_thr_ ? 255 : 0;
-    highlight_pixels_ += sat_[i] ? 1 : 0;
+  int sat_y0 = mask_h_, sat_y1 = -1;
+  for (int y = 0; y < mask_h_; ++y) {
+    const std::uint8_t* mx = max_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
+    std::uint8_t* sat = sat_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
+    int count = 0;
+    for (int x = 0; x < mask_w_; ++x) {
+      sat[x] = mx[x] >= thr ? 255 : 0;
+      count += sat[x] & 1;
+    }
+    highlight_pixels_ += count;
+    if (count) {
+      sat_y0 = std::min(sat_y0, y);
+      sat_y1 = y;
+    }
   }
   const int r = (config_.highlight_dilate_px + config_.downscale - 1) / config_.downscale;
-  const MorphScratch scratch{ImageView<std::uint8_t>(sat_tmp_.data(), mask_w_, mask_h_),
-                             sat_counts_.data(), sat_prefix_.data()};
-  morph_square(GrayView(sat_.data(), mask_w_, mask_h_), r,
-               ImageView<std::uint8_t>(sat_dil_.data(), mask_w_, mask_h_), scratch);
+  std::fill(sat_dil_.begin(), sat_dil_.end(), 0);
+  if (sat_y1 >= 0) {
+    // Rows outside [y0, y1] are empty, so dilating the band alone is exact.
+    const int y0 = std::max(sat_y0 - r, 0), y1 = std::min(sat_y1 + r, mask_h_ - 1);
+    const std::ptrdiff_t off = static_cast<std::ptrdiff_t>(y0) * mask_w_;
+    const int rows = y1 - y0 + 1;
+    const MorphScratch scratch{ImageView<std::uint8_t>(sat_tmp_.data(), mask_w_, rows),
+                               sat_counts_.data(), sat_prefix_.data()};
+    morph_square(GrayView(sat_.data() + off, mask_w_, rows), r,
+                 ImageView<std::uint8_t>(sat_dil_.data() + off, mask_w_, rows), scratch);
+  }
   for (int y = 0; y < mask_h_; ++y) {
     std::uint8_t* out = mask_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
     const std::uint8_t* sat = sat_dil_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
-    const int f = efirst_[static_cast<std::size_t>(y)], l = elast_[static_cast<std::size_t>(y)];
-    for (int x = 0; x < mask_w_; ++x) out[x] = (x >= f && x <= l && !sat[x]) ? 255 : 0;
+    const int f = std::clamp(efirst_[static_cast<std::size_t>(y)], 0, mask_w_);
+    const int l = std::clamp(elast_[static_cast<std::size_t>(y)] + 1, f, mask_w_);  // valid: [f, l)
+    std::fill(out, out + f, 0);
+    for (int x = f; x < l; ++x) out[x] = static_cast<std::uint8_t>(~sat[x]);  // sat is 0 or 255
+    std::fill(out + l, out + mask_w_, 0);
   }
   return mask();
 }

@@ -302,6 +302,11 @@ TEST_CASE("orb configure rejects bad configs; extract and the mask builder rejec
   const cv::Mat flat(480, 640, CV_8UC1, cv::Scalar(128));
   CHECK(orb.extract(view_of(flat), GrayView(), GrayView(), *f));
   CHECK(f->count == 0);
+  // A mask wider than kMaxImageWidth (the mask scratch's size) is refused.
+  const cv::Mat huge_mask(2, kMaxImageWidth + 1, CV_8UC1, cv::Scalar(255));
+  CHECK_FALSE(orb.extract(view_of(flat), view_of(huge_mask), GrayView(), *f));
+  CHECK_FALSE(orb.extract(view_of(flat), GrayView(), view_of(huge_mask), *f));
+  CHECK(f->count == 0);
   ValidMaskBuilder vmb;
   ValidMaskConfig vc;
   vc.downscale = 3;
@@ -310,4 +315,32 @@ TEST_CASE("orb configure rejects bad configs; extract and the mask builder rejec
   CHECK(vmb.build(view_of(wrong)).empty());
   // A frame without any black border is valid everywhere but highlights.
   CHECK(cv::countNonZero(mat_of(vmb.build(view_of(flat)))) == 320 * 240);
+}
+
+TEST_CASE("orb valid mask: highlight dilation (band of rows only) equals a full cv::dilate") {
+  // Two highlight spots far apart vertically, on a frame without border.
+  cv::Mat frame(480, 640, CV_8UC1, cv::Scalar(100));
+  frame(cv::Rect(200, 40, 5, 3)).setTo(255);
+  frame(cv::Rect(31, 300, 2, 7)).setTo(250);
+  ValidMaskBuilder vmb;
+  const ValidMaskConfig vc;  // downscale 2, dilation 6 px -> 3 mask pixels
+  REQUIRE(vmb.configure(vc, frame.cols, frame.rows));
+  const GrayView m = vmb.build(view_of(frame));
+  REQUIRE(m.width == 320);
+  // Reference: 2x2 block maximum, threshold, square dilation, inverted.
+  cv::Mat sat(240, 320, CV_8UC1, cv::Scalar(0));
+  for (int y = 0; y < 240; ++y)
+    for (int x = 0; x < 320; ++x) {
+      const cv::Mat block = frame(cv::Rect(2 * x, 2 * y, 2, 2));
+      double mx = 0;
+      cv::minMaxLoc(block, nullptr, &mx);
+      sat.at<std::uint8_t>(y, x) = mx >= vmb.highlight_threshold() ? 255 : 0;
+    }
+  const int r = (vc.highlight_dilate_px + vc.downscale - 1) / vc.downscale;
+  cv::Mat dilated;
+  cv::dilate(sat, dilated, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * r + 1, 2 * r + 1)));
+  const cv::Mat expected = 255 - dilated;
+  CHECK(vmb.highlight_pixels() > 0);
+  CHECK(cv::countNonZero(mat_of(m) != expected) == 0);
+  CHECK(cv::countNonZero(expected == 0) > 0);
 }
