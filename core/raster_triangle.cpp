@@ -301,6 +301,9 @@ inline float box_row_iz(const BoxSetup& b, int y) {
 // next time; a superset of the pixels drawn is harmless).
 void mark_box_dirty(const BoxSetup& b, const Target& target) {
   for (int y = b.y0; y <= b.y1; ++y) {
+    const std::ptrdiff_t px = static_cast<std::ptrdiff_t>(y) * target.stride + b.x0;
+    __builtin_prefetch(target.depth + px, 1);
+    __builtin_prefetch(target.triangle_id + px, 1);
     target.dirty_x0[y] = std::min(target.dirty_x0[y], b.x0);
     target.dirty_x1[y] = std::max(target.dirty_x1[y], b.x1);
   }
