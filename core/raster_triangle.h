@@ -1,7 +1,10 @@
-// One screen-space triangle into depth / triangle-id / mask buffers:
-// exact fixed-point edge functions walked scanline by scanline, top-left
-// fill rule, perspective-correct depth (1/z is affine in the image), depth
-// test on z. Internal to the rasteriser (core/rasterizer.cpp); no allocation.
+// One screen-space triangle into 1/z and triangle-id buffers: exact
+// fixed-point edge functions, top-left fill rule, perspective-correct depth
+// (1/z is affine in the image), depth test on 1/z. Small triangles take a
+// bounding-box kernel (32-bit edge tests), the rest a scanline walk (64-bit
+// exact edge walkers); both cover the same pixels. resolve_row turns 1/z
+// into depth and writes the mask once at the end. Internal to the
+// rasteriser (core/rasterizer.cpp); no allocation.
 #pragma once
 
 #include <cstddef>
