@@ -365,15 +365,15 @@ void draw_box_simd(const BoxSetup& b, const Target& target, Counters* counters) 
     for (int x = b.x0; x <= b.x1; x += kLanes) {
       cv::v_int32 cover = (ka | kb | kc) > minus_one;
       if (x + kLanes - 1 > b.x1) cover = cover & ((cv::vx_setall_s32(x) + lanes) <= last);
-      if (cv::v_check_any(cover)) {
-        count = count - cover;
-        const cv::v_float32 iz = cv::v_min(cv::v_max(iz_row + gx * kf, iz_min), iz_max);
-        const cv::v_float32 old = cv::vx_load(iz_buf + x);
-        const cv::v_float32 pass = (iz > old) & cv::v_reinterpret_as_f32(cover);
-        cv::v_store(iz_buf + x, cv::v_select(pass, iz, old));
-        const cv::v_int32 old_id = cv::vx_load(ids + x);
-        cv::v_store(ids + x, cv::v_select(cv::v_reinterpret_as_s32(pass), id, old_id));
-      }
+      // No branch on coverage: in boxes this small most groups are partly
+      // covered and the branch would mispredict; uncovered lanes keep old.
+      count = count - cover;
+      const cv::v_float32 iz = cv::v_min(cv::v_max(iz_row + gx * kf, iz_min), iz_max);
+      const cv::v_float32 old = cv::vx_load(iz_buf + x);
+      const cv::v_float32 pass = (iz > old) & cv::v_reinterpret_as_f32(cover);
+      cv::v_store(iz_buf + x, cv::v_select(pass, iz, old));
+      const cv::v_int32 old_id = cv::vx_load(ids + x);
+      cv::v_store(ids + x, cv::v_select(cv::v_reinterpret_as_s32(pass), id, old_id));
       ka = ka + k_step[0];
       kb = kb + k_step[1];
       kc = kc + k_step[2];
