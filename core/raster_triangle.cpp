@@ -1,7 +1,6 @@
 #include "core/raster_triangle.h"
 
 #include <algorithm>
-#include <cstring>
 #include <opencv2/core/hal/intrin.hpp>
 
 namespace st::raster {
@@ -12,168 +11,180 @@ namespace {
 inline std::int64_t floor_px(std::int64_t v) { return v >> kSubpixelBits; }
 inline std::int64_t ceil_px(std::int64_t v) { return -((-v) >> kSubpixelBits); }
 
-// ceil(N / m) of an edge bound, exactly, as N falls by dN every row:
-// N = q * m - r with 0 <= r < m; per row q drops by qd or qd + 1.
-struct EdgeWalk {
-  std::int64_t q, r, m, qd, rd;
+// ceil(n / m) and r = q m - n in [0, m), from a floating-point estimate
+// corrected exactly in integers (no 64-bit division). m >= kSubpixelScale
+// and |n| < 2^58, so the estimate is off by at most 2 (usually 0 or 1);
+// the loops are a safety net that does not run.
+std::int64_t exact_ceil_div(std::int64_t n, std::int64_t m, double inv_m, std::int64_t* r) {
+  std::int64_t q = static_cast<std::int64_t>(static_cast<double>(n) * inv_m);
+  std::int64_t rem = q * m - n;
+  for (int k = 0; k < 2; ++k) {
+    const std::int64_t low = rem < 0;
+    q += low;
+    rem += m & -low;
+  }
+  const std::int64_t high = rem >= m;
+  q -= high;
+  rem -= m & -high;
+  while (rem < 0) {
+    ++q;
+    rem += m;
+  }
+  while (rem >= m) {
+    --q;
+    rem -= m;
+  }
+  *r = rem;
+  return q;
+}
 
-  void init(std::int64_t n0, std::int64_t dn, std::int64_t m_in, double inv_m) {
-    m = m_in;
-    q = exact_ceil_div(n0, m, inv_m, &r);
-    std::int64_t cr;
-    const std::int64_t cq = exact_ceil_div(dn, m, inv_m, &cr);
-    // floor division of dn from its ceiling: dn = qd m + rd, 0 <= rd < m.
-    const std::int64_t exact = cr == 0;
-    qd = cq - 1 + exact;
-    rd = exact ? 0 : m - cr;
-  }
-  // An edge that never binds (q stays put): pads the walkers to two per side.
-  void init_inert(std::int64_t q_fixed) {
-    q = q_fixed;
-    r = qd = rd = 0;
-    m = 1;
-  }
-  // Branch-free: the carry is data-dependent, a branch would mispredict.
-  void step() {
-    r += rd;
-    const std::int64_t carry = r >= m;
-    q -= qd + carry;
-    r -= m & -carry;
-  }
+// The walker of ceil(N / m) with N = n0 at the first row, falling by dn per row.
+void init_walk(EdgeWalk* w, std::int64_t n0, std::int64_t dn, std::int64_t m, double inv_m) {
+  w->m = m;
+  w->q = exact_ceil_div(n0, m, inv_m, &w->r);
+  std::int64_t cr;
+  const std::int64_t cq = exact_ceil_div(dn, m, inv_m, &cr);
+  // floor division of dn from its ceiling: dn = qd m + rd, 0 <= rd < m.
+  const std::int64_t exact = cr == 0;
+  w->qd = cq - 1 + exact;
+  w->rd = exact ? 0 : m - cr;
+}
 
-  // ceil(n / m) and r = q m - n in [0, m), from a floating-point estimate
-  // corrected exactly in integers (no 64-bit division). m >= kSubpixelScale
-  // and |n| < 2^58, so the estimate is off by at most 2 (usually 0 or 1);
-  // the loops are a safety net that does not run.
-  static std::int64_t exact_ceil_div(std::int64_t n, std::int64_t m, double inv_m,
-                                     std::int64_t* r) {
-    std::int64_t q = static_cast<std::int64_t>(static_cast<double>(n) * inv_m);
-    std::int64_t rem = q * m - n;
-    for (int k = 0; k < 2; ++k) {
-      const std::int64_t low = rem < 0;
-      q += low;
-      rem += m & -low;
-    }
-    const std::int64_t high = rem >= m;
-    q -= high;
-    rem -= m & -high;
-    while (rem < 0) {
-      ++q;
-      rem += m;
-    }
-    while (rem >= m) {
-      --q;
-      rem -= m;
-    }
-    *r = rem;
-    return q;
-  }
-};
+// An edge that never binds (q stays put): pads the walkers to two per side.
+void init_inert(EdgeWalk* w, std::int64_t q_fixed) {
+  w->q = q_fixed;
+  w->r = w->qd = w->rd = 0;
+  w->m = 1;
+}
 
-// Span [x0, x1] of row y: depth test on z = 1/iz, id and mask writes.
+// Branch-free: the carry is data-dependent, a branch would mispredict.
+inline void step(EdgeWalk* w) {
+  w->r += w->rd;
+  const std::int64_t carry = w->r >= w->m;
+  w->q -= w->qd + carry;
+  w->r -= w->m & -carry;
+}
+
+// Span [x0, x1] of row y: depth test on 1/z (larger is nearer; an empty
+// pixel holds 0, so any surface passes), 1/z and id writes.
 struct Span {
   int x0, x1;
   float iz0, gx, iz_min, iz_max;
   std::int32_t id;
 };
 
-void fill_span_portable(const Span& s, float* depth, std::int32_t* ids, std::uint8_t* mask,
-                        Counters* counters) {
-  int newly = 0;
+void fill_span_portable(const Span& s, float* iz_buf, std::int32_t* ids) {
   for (int x = s.x0; x <= s.x1; ++x) {
     float iz = s.iz0 + s.gx * static_cast<float>(x - s.x0);
     iz = std::min(std::max(iz, s.iz_min), s.iz_max);
-    const float z = 1.0f / iz;
-    const float old = depth[x];
-    if (old == 0.0f) ++newly;
-    if (old == 0.0f || z < old) {
-      depth[x] = z;
+    if (iz > iz_buf[x]) {
+      iz_buf[x] = iz;
       ids[x] = s.id;
     }
-    mask[x] = 255;
   }
-  counters->newly_covered += newly;
 }
 
-#if CV_SIMD128
-// Bytes 0xFF in the lanes whose bit is set: mask writes, 4 pixels at once.
-constexpr std::uint32_t kLaneBytes[16] = {0x00000000u, 0x000000FFu, 0x0000FF00u, 0x0000FFFFu,
-                                          0x00FF0000u, 0x00FF00FFu, 0x00FFFF00u, 0x00FFFFFFu,
-                                          0xFF000000u, 0xFF0000FFu, 0xFF00FF00u, 0xFF00FFFFu,
-                                          0xFFFF0000u, 0xFFFF00FFu, 0xFFFFFF00u, 0xFFFFFFFFu};
-
-// Set bits of a 4-bit lane mask (the baseline x86-64 ISA has no popcnt).
-constexpr int kLaneCount[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+#if CV_SIMD
+constexpr int kLanes = cv::v_float32::nlanes;
+static_assert(kLanes <= kTargetPad, "SIMD groups may run past a span end by kLanes - 1");
 
 // Per-triangle constants of the SIMD kernel, broadcast once per triangle
 // rather than once per row (rows average ~10 pixels on the liver).
 struct SimdSpanConstants {
-  cv::v_float32x4 lane, four, gx, iz_min, iz_max, one;
-  cv::v_int32x4 id, lane_i;
-  SimdSpanConstants(float gx_in, float iz_min_in, float iz_max_in, std::int32_t id_in)
-      : lane(0.f, 1.f, 2.f, 3.f),
-        four(cv::v_setall_f32(4.0f)),
-        gx(cv::v_setall_f32(gx_in)),
-        iz_min(cv::v_setall_f32(iz_min_in)),
-        iz_max(cv::v_setall_f32(iz_max_in)),
-        one(cv::v_setall_f32(1.0f)),
-        id(cv::v_setall_s32(id_in)),
-        lane_i(0, 1, 2, 3) {}
+  cv::v_float32 lane, step, gx, iz_min, iz_max;
+  cv::v_int32 id, lane_i;
+  SimdSpanConstants(float gx_in, float iz_min_in, float iz_max_in, std::int32_t id_in) {
+    float lane_f[kLanes];
+    std::int32_t lane_s[kLanes];
+    for (int i = 0; i < kLanes; ++i) {
+      lane_f[i] = static_cast<float>(i);
+      lane_s[i] = i;
+    }
+    lane = cv::vx_load(lane_f);
+    lane_i = cv::vx_load(lane_s);
+    step = cv::vx_setall_f32(static_cast<float>(kLanes));
+    gx = cv::vx_setall_f32(gx_in);
+    iz_min = cv::vx_setall_f32(iz_min_in);
+    iz_max = cv::vx_setall_f32(iz_max_in);
+    id = cv::vx_setall_s32(id_in);
+  }
 };
 
-// Same arithmetic as the portable kernel, 4 pixels per step (x - x0 is an
-// exact small integer in float, so stepping it by 4 changes no bit). The
-// last group may reach 3 pixels past x1: those lanes are read and written
-// back unchanged (the buffers are padded, see Target).
-inline void fill_span_simd(const Span& s, const SimdSpanConstants& c, float* depth,
-                           std::int32_t* ids, std::uint8_t* mask, Counters* counters) {
-  const cv::v_float32x4 zero = cv::v_setzero_f32(), iz0 = cv::v_setall_f32(s.iz0);
-  cv::v_float32x4 k = c.lane;
-  int newly = 0;
-  for (int x = s.x0; x <= s.x1; x += 4, k = k + c.four) {
-    const cv::v_float32x4 iz = cv::v_min(cv::v_max(iz0 + c.gx * k, c.iz_min), c.iz_max);
-    const cv::v_float32x4 z = c.one / iz;
-    const cv::v_float32x4 old = cv::v_load(depth + x);
-    cv::v_float32x4 empty = old == zero;
-    cv::v_float32x4 pass = empty | (z < old);
-    int lanes = 15;
-    if (x + 3 > s.x1) {
-      const cv::v_int32x4 inside = (cv::v_setall_s32(x) + c.lane_i) <= cv::v_setall_s32(s.x1);
-      const cv::v_float32x4 inside_f = cv::v_reinterpret_as_f32(inside);
-      pass = pass & inside_f;
-      empty = empty & inside_f;
-      lanes = cv::v_signmask(inside);
-    }
-    cv::v_store(depth + x, cv::v_select(pass, z, old));
-    const cv::v_int32x4 old_id = cv::v_load(ids + x);
+// Same arithmetic as the portable kernel, kLanes pixels per step (x - x0 is
+// an exact small integer in float, so stepping it changes no bit). The last
+// group may reach kLanes - 1 pixels past x1: those lanes are read and
+// written back unchanged (the buffers are padded, see Target).
+inline void fill_span_simd(const Span& s, const SimdSpanConstants& c, float* iz_buf,
+                           std::int32_t* ids) {
+  const cv::v_float32 iz0 = cv::vx_setall_f32(s.iz0);
+  const cv::v_int32 last = cv::vx_setall_s32(s.x1);
+  cv::v_float32 k = c.lane;
+  for (int x = s.x0; x <= s.x1; x += kLanes, k = k + c.step) {
+    const cv::v_float32 iz = cv::v_min(cv::v_max(iz0 + c.gx * k, c.iz_min), c.iz_max);
+    const cv::v_float32 old = cv::vx_load(iz_buf + x);
+    cv::v_float32 pass = iz > old;
+    if (x + kLanes - 1 > s.x1)
+      pass = pass & cv::v_reinterpret_as_f32((cv::vx_setall_s32(x) + c.lane_i) <= last);
+    cv::v_store(iz_buf + x, cv::v_select(pass, iz, old));
+    const cv::v_int32 old_id = cv::vx_load(ids + x);
     cv::v_store(ids + x, cv::v_select(cv::v_reinterpret_as_s32(pass), c.id, old_id));
-    newly += kLaneCount[cv::v_signmask(empty)];
-    std::uint32_t m;
-    std::memcpy(&m, mask + x, 4);
-    m |= kLaneBytes[lanes];
-    std::memcpy(mask + x, &m, 4);
   }
-  counters->newly_covered += newly;
+}
+
+// resolve_row, 4 kLanes pixels per step; returns where it stopped.
+int resolve_row_simd(float* depth, std::uint8_t* mask, int x0, int x1, int* covered) {
+  const cv::v_float32 zero = cv::vx_setzero_f32(), one = cv::vx_setall_f32(1.0f);
+  cv::v_int32 count = cv::vx_setzero_s32();
+  int x = x0;
+  for (; x + 4 * kLanes - 1 <= x1; x += 4 * kLanes) {
+    cv::v_int32 hit[4];
+    for (int g = 0; g < 4; ++g) {
+      const cv::v_float32 iz = cv::vx_load(depth + x + g * kLanes);
+      const cv::v_float32 covered_f = iz > zero;
+      cv::v_store(depth + x + g * kLanes, cv::v_select(covered_f, one / iz, zero));
+      hit[g] = cv::v_reinterpret_as_s32(covered_f);
+      count = count - hit[g];
+    }
+    const cv::v_int8 bytes = cv::v_pack(cv::v_pack(hit[0], hit[1]), cv::v_pack(hit[2], hit[3]));
+    cv::v_store(mask + x, cv::v_reinterpret_as_u8(bytes));
+  }
+  *covered += cv::v_reduce_sum(count);
+  return x;
 }
 #endif
 
-// The edge set of one triangle: two walkers bounding x from below and two
-// from above (a triangle has one or two of each; inert walkers pad the rest),
-// and the row range (horizontal edges restrict rows, not columns).
-struct Edges {
-  EdgeWalk lower[2], upper[2];
-  std::int64_t y_first = 0, y_last = -1;
-};
+void resolve_tail(float* depth, std::uint8_t* mask, int x0, int x1, int* covered) {
+  int n = 0;
+  for (int x = x0; x <= x1; ++x) {
+    const float iz = depth[x];
+    const bool hit = iz > 0.0f;
+    depth[x] = hit ? 1.0f / iz : 0.0f;
+    mask[x] = hit ? 255 : 0;
+    n += hit;
+  }
+  *covered += n;
+}
 
 // Pixel (x, y) is inside edge a->b if E = dx (Y - Ya) - dy (X - Xa) > 0, or
 // E == 0 on a top or left edge (dy < 0, or dy == 0 and dx > 0), X = x S.
-Edges setup_edges(const FixedTriangle& t, int width, int height) {
+// Fills the walkers and the row range of out; false if no row is covered.
+bool setup_edges(const FixedTriangle& t, int width, int height, PreparedTriangle* out) {
   constexpr std::int64_t S = kSubpixelScale;
-  Edges e;
   const std::int64_t ymin = std::min({t.y[0], t.y[1], t.y[2]});
   const std::int64_t ymax = std::max({t.y[0], t.y[1], t.y[2]});
-  e.y_first = std::max<std::int64_t>(0, ceil_px(ymin));
-  e.y_last = std::min<std::int64_t>(height - 1, floor_px(ymax));
+  std::int64_t y_first = std::max<std::int64_t>(0, ceil_px(ymin));
+  std::int64_t y_last = std::min<std::int64_t>(height - 1, floor_px(ymax));
+  // Horizontal edges restrict rows, not columns: top edge, rows at or below
+  // it; bottom edge, rows strictly above it.
+  for (int i = 0; i < 3; ++i) {
+    const int j = i == 2 ? 0 : i + 1;
+    if (t.y[j] != t.y[i]) continue;
+    if (t.x[j] > t.x[i])
+      y_first = std::max(y_first, ceil_px(t.y[i]));
+    else
+      y_last = std::min(y_last, ceil_px(t.y[i]) - 1);
+  }
+  if (y_first > y_last) return false;
   int n_lower = 0, n_upper = 0;
   // 1/|dy| of the three edges from one division (an estimate is enough: the
   // edge walkers correct it exactly). Horizontal edges count as 1.
@@ -188,79 +199,261 @@ Edges setup_edges(const FixedTriangle& t, int width, int height) {
   for (int i = 0; i < 3; ++i) {
     const int j = i == 2 ? 0 : i + 1;
     const std::int64_t dx = t.x[j] - t.x[i], dy = t.y[j] - t.y[i];
-    const bool top_left = dy < 0 || (dy == 0 && dx > 0);
-    if (dy == 0) {  // top edge: rows at or below it; bottom edge: rows strictly above
-      if (dx > 0)
-        e.y_first = std::max(e.y_first, ceil_px(t.y[i]));
-      else
-        e.y_last = std::min(e.y_last, ceil_px(t.y[i]) - 1);
-      continue;
-    }
+    if (dy == 0) continue;
     // Inside: A x + B(y) + bias >= 0 with A = -dy S; bound x >= N / A (A > 0)
     // or x <= -N / |A| (A < 0), N = -(B(y) + bias), N falls by dx S per row.
-    const std::int64_t bias = top_left ? 0 : -1;
-    const std::int64_t n0 = -(dx * (e.y_first * S - t.y[i]) + dy * t.x[i] + bias);
-    EdgeWalk& w = dy < 0 ? e.lower[n_lower++] : e.upper[n_upper++];
-    w.init(n0, dx * S, (dy < 0 ? -dy : dy) * S, inv_m[i]);
+    const std::int64_t bias = dy < 0 ? 0 : -1;  // top-left edges include E == 0
+    const std::int64_t n0 = -(dx * (y_first * S - t.y[i]) + dy * t.x[i] + bias);
+    EdgeWalk* w = dy < 0 ? &out->lower[n_lower++] : &out->upper[n_upper++];
+    init_walk(w, n0, dx * S, (dy < 0 ? -dy : dy) * S, inv_m[i]);
   }
-  if (n_lower < 2) e.lower[1].init_inert(0);                   // x >= 0 anyway
-  if (n_upper < 2) e.upper[1].init_inert(-(width - 1));        // x <= width - 1 anyway
-  if (n_lower == 0 || n_upper == 0) e.y_last = e.y_first - 1;  // degenerate: nothing
-  return e;
+  if (n_lower == 0 || n_upper == 0) return false;            // degenerate: nothing
+  if (n_lower < 2) init_inert(&out->lower[1], 0);             // x >= 0 anyway
+  if (n_upper < 2) init_inert(&out->upper[1], -(width - 1));  // x <= width - 1 anyway
+  out->y_next = static_cast<std::int32_t>(y_first);
+  out->y_last = static_cast<std::int32_t>(y_last);
+  return true;
 }
 
-// The scanline walk; fill(span, row offset) writes one span.
+// The scanline walk over rows y_next..y_stop; fill(span, row offset) writes
+// one span.
 template <typename Fill>
-void walk_rows(const FixedTriangle& tri, const DepthPlane& plane, const Target& target, Span* s,
+void walk_rows(PreparedTriangle* t, int y_stop, const Target& target, Span* s,
                Counters* counters, Fill fill) {
-  Edges e = setup_edges(tri, target.width, target.height);
   const std::int64_t x_limit = target.width - 1;
   std::int64_t fragments = 0;
-  for (std::int64_t y = e.y_first; y <= e.y_last; ++y) {
-    const std::int64_t x0 = std::max({std::int64_t{0}, e.lower[0].q, e.lower[1].q});
-    const std::int64_t x1 = std::min({x_limit, -e.upper[0].q, -e.upper[1].q});
-    e.lower[0].step();
-    e.lower[1].step();
-    e.upper[0].step();
-    e.upper[1].step();
+  const int y_end = std::min<int>(t->y_last, y_stop);
+  int y = t->y_next;
+  for (; y <= y_end; ++y) {
+    const std::int64_t x0 = std::max({std::int64_t{0}, t->lower[0].q, t->lower[1].q});
+    const std::int64_t x1 = std::min({x_limit, -t->upper[0].q, -t->upper[1].q});
+    step(&t->lower[0]);
+    step(&t->lower[1]);
+    step(&t->upper[0]);
+    step(&t->upper[1]);
     if (x0 > x1) continue;
     s->x0 = static_cast<int>(x0);
     s->x1 = static_cast<int>(x1);
-    s->iz0 = static_cast<float>(plane.c + plane.gy * static_cast<double>(y) +
-                                plane.gx * static_cast<double>(x0));
+    s->iz0 = static_cast<float>(t->c + t->gy * static_cast<double>(y) +
+                                t->gx_d * static_cast<double>(x0));
     fill(*s, static_cast<std::ptrdiff_t>(y) * target.stride);
     target.dirty_x0[y] = std::min(target.dirty_x0[y], s->x0);
     target.dirty_x1[y] = std::max(target.dirty_x1[y], s->x1);
     fragments += x1 - x0 + 1;
   }
+  t->y_next = y;
   counters->fragments += fragments;
 }
 
+// The bounding-box kernel's view of a small triangle: per edge, the exact
+// inside test at pixel centres reduced to the sign of a 32-bit integer.
+// E = dx (Y - Ya) - dy (X - Xa) at X = x S, Y = y S is S K' + r with
+// 0 <= r < S; E >= e_min (0 on top-left edges, else 1) iff K = K' - t >= 0,
+// t = 1 where r == 0 on other edges. K moves by -dy per column and by dx per
+// row, and stays far inside int32 for a box of kSmallBoxPx.
+struct BoxSetup {
+  int x0, y0, x1, y1;  // pixel box, clipped to the image, inclusive
+  std::int32_t k0[3], kx[3], ky[3];
+  double iz_c, iz_gx, iz_gy;
+  float gx, iz_min, iz_max;
+  std::int32_t id;
+};
+
+bool setup_box(const FixedTriangle& t, const DepthPlane& plane, std::int32_t id,
+               const Target& target, BoxSetup* b) {
+  constexpr std::int64_t S = kSubpixelScale;
+  const std::int64_t x_lo = ceil_px(std::min({t.x[0], t.x[1], t.x[2]}));
+  const std::int64_t x_hi = floor_px(std::max({t.x[0], t.x[1], t.x[2]}));
+  const std::int64_t y_lo = ceil_px(std::min({t.y[0], t.y[1], t.y[2]}));
+  const std::int64_t y_hi = floor_px(std::max({t.y[0], t.y[1], t.y[2]}));
+  if (x_hi - x_lo >= kSmallBoxPx || y_hi - y_lo >= kSmallBoxPx) return false;
+  b->x0 = static_cast<int>(std::max<std::int64_t>(x_lo, 0));
+  b->x1 = static_cast<int>(std::min<std::int64_t>(x_hi, target.width - 1));
+  b->y0 = static_cast<int>(std::max<std::int64_t>(y_lo, 0));
+  b->y1 = static_cast<int>(std::min<std::int64_t>(y_hi, target.height - 1));
+  for (int i = 0; i < 3; ++i) {
+    const int j = i == 2 ? 0 : i + 1;
+    const std::int64_t dx = t.x[j] - t.x[i], dy = t.y[j] - t.y[i];
+    const std::int64_t e0 = dx * (b->y0 * S - t.y[i]) - dy * (b->x0 * S - t.x[i]);
+    const bool top_left = dy < 0 || (dy == 0 && dx > 0);
+    const bool on_pixel_grid = (e0 & (S - 1)) == 0;
+    b->k0[i] = static_cast<std::int32_t>((e0 >> kSubpixelBits) - (on_pixel_grid && !top_left));
+    b->kx[i] = static_cast<std::int32_t>(-dy);
+    b->ky[i] = static_cast<std::int32_t>(dx);
+  }
+  b->iz_c = plane.c;
+  b->iz_gx = plane.gx;
+  b->iz_gy = plane.gy;
+  b->gx = static_cast<float>(plane.gx);
+  b->iz_min = plane.iz_min;
+  b->iz_max = plane.iz_max;
+  b->id = id;
+  return true;
+}
+
+// 1/z at the box's first column of row y (the row's float origin).
+inline float box_row_iz(const BoxSetup& b, int y) {
+  return static_cast<float>(b.iz_c + b.iz_gy * static_cast<double>(y) +
+                            b.iz_gx * static_cast<double>(b.x0));
+}
+
+// Marks the box's columns of rows y0..y1 as written (cleared and resolved
+// next time; a superset of the pixels drawn is harmless).
+void mark_box_dirty(const BoxSetup& b, const Target& target) {
+  for (int y = b.y0; y <= b.y1; ++y) {
+    const std::ptrdiff_t px = static_cast<std::ptrdiff_t>(y) * target.stride + b.x0;
+    __builtin_prefetch(target.depth + px, 1);
+    __builtin_prefetch(target.triangle_id + px, 1);
+    target.dirty_x0[y] = std::min(target.dirty_x0[y], b.x0);
+    target.dirty_x1[y] = std::max(target.dirty_x1[y], b.x1);
+  }
+}
+
+void draw_box_portable(const BoxSetup& b, const Target& target, Counters* counters) {
+  std::int32_t kr[3] = {b.k0[0], b.k0[1], b.k0[2]};
+  std::int64_t fragments = 0;
+  for (int y = b.y0; y <= b.y1; ++y) {
+    float* iz_buf = target.depth + static_cast<std::ptrdiff_t>(y) * target.stride;
+    std::int32_t* ids = target.triangle_id + static_cast<std::ptrdiff_t>(y) * target.stride;
+    const float iz_row = box_row_iz(b, y);
+    std::int32_t ka = kr[0], kb = kr[1], kc = kr[2];
+    for (int x = b.x0; x <= b.x1; ++x, ka += b.kx[0], kb += b.kx[1], kc += b.kx[2]) {
+      if ((ka | kb | kc) < 0) continue;
+      ++fragments;
+      float iz = iz_row + b.gx * static_cast<float>(x - b.x0);
+      iz = std::min(std::max(iz, b.iz_min), b.iz_max);
+      if (iz > iz_buf[x]) {
+        iz_buf[x] = iz;
+        ids[x] = b.id;
+      }
+    }
+    for (int e = 0; e < 3; ++e) kr[e] += b.ky[e];
+  }
+  counters->fragments += fragments;
+}
+
+#if CV_SIMD
+// Same tests and arithmetic as draw_box_portable, kLanes columns per step;
+// lanes past the box are masked off (they may lie past the image edge).
+void draw_box_simd(const BoxSetup& b, const Target& target, Counters* counters) {
+  std::int32_t lane_k[3][kLanes], lane_i[kLanes];
+  float lane_f[kLanes];
+  for (int i = 0; i < kLanes; ++i) {
+    for (int e = 0; e < 3; ++e) lane_k[e][i] = b.kx[e] * i;
+    lane_i[i] = i;
+    lane_f[i] = static_cast<float>(i);
+  }
+  cv::v_int32 k_lane[3], k_step[3];
+  for (int e = 0; e < 3; ++e) {
+    k_lane[e] = cv::vx_load(lane_k[e]);
+    k_step[e] = cv::vx_setall_s32(b.kx[e] * kLanes);
+  }
+  const cv::v_int32 lanes = cv::vx_load(lane_i), last = cv::vx_setall_s32(b.x1),
+                    minus_one = cv::vx_setall_s32(-1), id = cv::vx_setall_s32(b.id);
+  const cv::v_float32 gx = cv::vx_setall_f32(b.gx), iz_min = cv::vx_setall_f32(b.iz_min),
+                      iz_max = cv::vx_setall_f32(b.iz_max), lane0 = cv::vx_load(lane_f),
+                      f_step = cv::vx_setall_f32(static_cast<float>(kLanes));
+  cv::v_int32 count = cv::vx_setzero_s32();
+  std::int32_t kr[3] = {b.k0[0], b.k0[1], b.k0[2]};
+  for (int y = b.y0; y <= b.y1; ++y) {
+    float* iz_buf = target.depth + static_cast<std::ptrdiff_t>(y) * target.stride;
+    std::int32_t* ids = target.triangle_id + static_cast<std::ptrdiff_t>(y) * target.stride;
+    const cv::v_float32 iz_row = cv::vx_setall_f32(box_row_iz(b, y));
+    cv::v_int32 ka = cv::vx_setall_s32(kr[0]) + k_lane[0], kb = cv::vx_setall_s32(kr[1]) + k_lane[1],
+                kc = cv::vx_setall_s32(kr[2]) + k_lane[2];
+    cv::v_float32 kf = lane0;
+    for (int x = b.x0; x <= b.x1; x += kLanes) {
+      cv::v_int32 cover = (ka | kb | kc) > minus_one;
+      if (x + kLanes - 1 > b.x1) cover = cover & ((cv::vx_setall_s32(x) + lanes) <= last);
+      // No branch on coverage: in boxes this small most groups are partly
+      // covered and the branch would mispredict; uncovered lanes keep old.
+      count = count - cover;
+      const cv::v_float32 iz = cv::v_min(cv::v_max(iz_row + gx * kf, iz_min), iz_max);
+      const cv::v_float32 old = cv::vx_load(iz_buf + x);
+      const cv::v_float32 pass = (iz > old) & cv::v_reinterpret_as_f32(cover);
+      cv::v_store(iz_buf + x, cv::v_select(pass, iz, old));
+      const cv::v_int32 old_id = cv::vx_load(ids + x);
+      cv::v_store(ids + x, cv::v_select(cv::v_reinterpret_as_s32(pass), id, old_id));
+      ka = ka + k_step[0];
+      kb = kb + k_step[1];
+      kc = kc + k_step[2];
+      kf = kf + f_step;
+    }
+    for (int e = 0; e < 3; ++e) kr[e] += b.ky[e];
+  }
+  counters->fragments += cv::v_reduce_sum(count);
+}
+#endif
+
 }  // namespace
 
-bool simd_enabled() { return CV_SIMD128 != 0; }
+bool simd_enabled() { return CV_SIMD != 0; }
 
-void rasterize(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t id,
-               const Target& target, Counters* counters) {
+int resolve_row(float* depth, std::uint8_t* mask, int x0, int x1, bool use_simd) {
+  int covered = 0;
+#if CV_SIMD
+  if (use_simd) x0 = resolve_row_simd(depth, mask, x0, x1, &covered);
+#else
+  (void)use_simd;
+#endif
+  resolve_tail(depth, mask, x0, x1, &covered);
+  return covered;
+}
+
+bool prepare(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t id,
+             const Target& target, PreparedTriangle* out) {
+  if (!setup_edges(tri, target.width, target.height, out)) return false;
+  out->id = id;
+  out->gx = static_cast<float>(plane.gx);
+  out->iz_min = plane.iz_min;
+  out->iz_max = plane.iz_max;
+  out->c = plane.c;
+  out->gy = plane.gy;
+  out->gx_d = plane.gx;
+  return true;
+}
+
+void draw_rows(PreparedTriangle* tri, int y_stop, const Target& target, Counters* counters) {
   Span s;
-  s.gx = static_cast<float>(plane.gx);
-  s.iz_min = plane.iz_min;
-  s.iz_max = plane.iz_max;
-  s.id = id;
-#if CV_SIMD128
+  s.gx = tri->gx;
+  s.iz_min = tri->iz_min;
+  s.iz_max = tri->iz_max;
+  s.id = tri->id;
+#if CV_SIMD
   if (target.use_simd) {
-    const SimdSpanConstants c(s.gx, s.iz_min, s.iz_max, id);
-    walk_rows(tri, plane, target, &s, counters, [&](const Span& span, std::ptrdiff_t row) {
-      fill_span_simd(span, c, target.depth + row, target.triangle_id + row, target.mask + row,
-                     counters);
+    const SimdSpanConstants c(s.gx, s.iz_min, s.iz_max, s.id);
+    walk_rows(tri, y_stop, target, &s, counters, [&](const Span& span, std::ptrdiff_t row) {
+      fill_span_simd(span, c, target.depth + row, target.triangle_id + row);
     });
     return;
   }
 #endif
-  walk_rows(tri, plane, target, &s, counters, [&](const Span& span, std::ptrdiff_t row) {
-    fill_span_portable(span, target.depth + row, target.triangle_id + row, target.mask + row,
-                       counters);
+  walk_rows(tri, y_stop, target, &s, counters, [&](const Span& span, std::ptrdiff_t row) {
+    fill_span_portable(span, target.depth + row, target.triangle_id + row);
   });
+}
+
+bool draw_small(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t id,
+                const Target& target, Counters* counters) {
+  BoxSetup b;
+  if (!setup_box(tri, plane, id, target, &b)) return false;
+  if (b.x0 > b.x1 || b.y0 > b.y1) return true;
+  mark_box_dirty(b, target);
+#if CV_SIMD
+  if (target.use_simd) {
+    draw_box_simd(b, target, counters);
+    return true;
+  }
+#endif
+  draw_box_portable(b, target, counters);
+  return true;
+}
+
+void rasterize(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t id,
+               const Target& target, Counters* counters) {
+  if (draw_small(tri, plane, id, target, counters)) return;
+  PreparedTriangle p;
+  if (prepare(tri, plane, id, target, &p)) draw_rows(&p, target.height - 1, target, counters);
 }
 
 }  // namespace st::raster

@@ -1,7 +1,10 @@
-// One screen-space triangle into depth / triangle-id / mask buffers:
-// exact fixed-point edge functions walked scanline by scanline, top-left
-// fill rule, perspective-correct depth (1/z is affine in the image), depth
-// test on z. Internal to the rasteriser (core/rasterizer.cpp); no allocation.
+// One screen-space triangle into 1/z and triangle-id buffers: exact
+// fixed-point edge functions, top-left fill rule, perspective-correct depth
+// (1/z is affine in the image), depth test on 1/z. Small triangles take a
+// bounding-box kernel (32-bit edge tests), the rest a scanline walk (64-bit
+// exact edge walkers); both cover the same pixels. resolve_row turns 1/z
+// into depth and writes the mask once at the end. Internal to the
+// rasteriser (core/rasterizer.cpp); no allocation.
 #pragma once
 
 #include <cstddef>
@@ -18,11 +21,13 @@ inline constexpr std::int64_t kSubpixelScale = std::int64_t{1} << kSubpixelBits;
 // 3D first (guard band), so fixed-point coordinates stay bounded.
 inline constexpr double kGuardBandPx = 16384.0;
 
-// Target buffers: stride in elements, shared by the three planes. Every
-// buffer holds at least 4 elements after the last pixel (SIMD groups may
-// read and write back up to 3 pixels past a span end, unchanged).
+// Elements every target buffer holds after its last pixel: SIMD groups may
+// read and write back up to kTargetPad - 1 pixels past a span end, unchanged.
+inline constexpr int kTargetPad = 16;
+
+// Target buffers: stride in elements, shared by the three planes.
 struct Target {
-  float* depth = nullptr;  // mm; 0 = empty
+  float* depth = nullptr;  // while drawing 1/z (1/mm), 0 = empty; resolve_row makes it mm
   std::int32_t* triangle_id = nullptr;
   std::uint8_t* mask = nullptr;
   int width = 0, height = 0;
@@ -50,12 +55,50 @@ struct FixedTriangle {
 
 struct Counters {
   std::int64_t fragments = 0;  // pixels inside the triangle (before the depth test)
-  int newly_covered = 0;       // pixels that were empty before
 };
+
+// ceil(N / m) of an edge bound, exactly, as N falls by a fixed step every
+// row: N = q m - r with 0 <= r < m; per row q drops by qd or qd + 1.
+struct EdgeWalk {
+  std::int64_t q, r, m, qd, rd;
+};
+
+// A triangle set up for the scanline walk, resumable row band by row band:
+// two walkers bound x from below and two from above (inert ones pad), rows
+// y_next..y_last remain. Setup once, drawn by one or more draw_rows() calls.
+struct PreparedTriangle {
+  EdgeWalk lower[2], upper[2];
+  std::int32_t y_next = 0, y_last = -1;
+  std::int32_t id = -1;
+  float gx = 0, iz_min = 0, iz_max = 0;
+  double c = 0, gy = 0, gx_d = 0;  // the depth plane (see DepthPlane)
+};
+
+// Sets up tri for rows 0..target.height-1; false if it covers no row.
+bool prepare(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t id,
+             const Target& target, PreparedTriangle* out);
+
+// Draws the prepared triangle's remaining rows up to y_stop (inclusive) and
+// advances it past them.
+void draw_rows(PreparedTriangle* tri, int y_stop, const Target& target, Counters* counters);
+
+// Triangles whose pixel bounding box is under this many pixels on both
+// sides take the bounding-box kernel (draw_small), the rest the scanline walk.
+inline constexpr int kSmallBoxPx = 16;
+
+// Draws tri if it is small (see kSmallBoxPx) and returns true; else false
+// and draws nothing. Same pixels, depth and ids as the scanline walk.
+bool draw_small(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t id,
+                const Target& target, Counters* counters);
 
 // Rasterises one triangle; pixel centres at integer coordinates.
 void rasterize(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t id,
                const Target& target, Counters* counters);
+
+// After the last triangle: turns 1/z into depth (mm, 0 stays 0) and writes
+// the mask (255 where covered, else 0) over columns x0..x1 of one row;
+// returns the covered pixel count. Bit-identical with and without SIMD.
+int resolve_row(float* depth, std::uint8_t* mask, int x0, int x1, bool use_simd);
 
 // True if the SIMD span kernel is compiled in (else the portable one runs).
 bool simd_enabled();

@@ -24,7 +24,7 @@ constexpr unsigned kNear = 1u << 0;
 constexpr unsigned kGuardShift = 1, kRejectShift = 5;
 constexpr unsigned kClipMask = 0x1Fu;                             // near + guard band
 constexpr unsigned kRejectMask = kNear | (0xFu << kRejectShift);  // trivially outside
-constexpr int kBufferPad = 4;  // elements after the last pixel (SIMD groups)
+constexpr int kBufferPad = raster::kTargetPad;
 
 // Planes through the camera centre with lo <= u <= hi and lo_v <= v <= hi_v
 // (for z > 0), in the order left, right, top, bottom; inside >= 0.
@@ -186,10 +186,10 @@ void MeshRasterizer::order_for_locality(const Mesh& mesh) {
 
 bool MeshRasterizer::simd_available() { return raster::simd_enabled(); }
 
-// Only what the last render wrote: with the organ in view this is about the
-// covered area rather than the whole image.
-void MeshRasterizer::clear_buffers() {
-  for (int y = 0; y < raster_height_; ++y) {
+// Only what the last render wrote (and resets that record): with the organ
+// in view this is about the covered area rather than the whole image.
+void MeshRasterizer::clear_rows(int y_first, int y_last) {
+  for (int y = y_first; y <= y_last; ++y) {
     const int x0 = dirty_x0_[y], x1 = dirty_x1_[y];
     if (x0 > x1) continue;
     const std::size_t a = static_cast<std::size_t>(y) * raster_width_ + x0;
@@ -199,6 +199,17 @@ void MeshRasterizer::clear_buffers() {
     std::fill_n(mask_buf_.begin() + a, n, std::uint8_t{0});
     dirty_x0_[y] = raster_width_;
     dirty_x1_[y] = -1;
+  }
+}
+
+// Depth from 1/z, the mask and the covered count over what this render wrote.
+void MeshRasterizer::resolve_rows(int y_first, int y_last) {
+  for (int y = y_first; y <= y_last; ++y) {
+    const int x0 = dirty_x0_[y], x1 = dirty_x1_[y];
+    if (x0 > x1) continue;
+    const std::size_t row = static_cast<std::size_t>(y) * raster_width_;
+    covered_pixels_ += raster::resolve_row(depth_buf_.data() + row, mask_buf_.data() + row, x0,
+                                           x1, config_.use_simd);
   }
 }
 
@@ -224,18 +235,30 @@ void MeshRasterizer::render(const SE3& T_camera_model, const Pinhole& K_full) {
   stats_ = {};
   rendered_ = configured_;
   if (!configured_) return;
-  clear_buffers();
   const bool intrinsics_ok = K_full.fx > 0 && K_full.fy > 0 && std::isfinite(K_full.fx) &&
                              std::isfinite(K_full.fy) && std::isfinite(K_full.cx) &&
                              std::isfinite(K_full.cy);
-  if (!intrinsics_ok || !T_camera_model.all_finite()) return;
+  if (!intrinsics_ok || !T_camera_model.all_finite()) {
+    clear_rows(0, raster_height_ - 1);
+    return;
+  }
   transform_vertices();
   const raster::Target tgt = target();
   raster::Counters counters;
   const int n = static_cast<int>(tri_.size() / 3);
+  clear_rows(0, raster_height_ - 1);
   for (int t = 0; t < n; ++t) draw_triangle(t, tgt, &counters);
+  resolve_rows(0, raster_height_ - 1);
   stats_.fragments = counters.fragments;
-  covered_pixels_ = counters.newly_covered;
+}
+
+// One screen-space triangle: small ones (most of a dense organ mesh) by
+// the bounding-box kernel, the rest by the scanline walk.
+void MeshRasterizer::emit(const raster::FixedTriangle& ft, const raster::DepthPlane& plane,
+                          std::int32_t id, const raster::Target& tgt, raster::Counters* counters) {
+  if (raster::draw_small(ft, plane, id, tgt, counters)) return;
+  raster::PreparedTriangle p;
+  if (raster::prepare(ft, plane, id, tgt, &p)) raster::draw_rows(&p, tgt.height - 1, tgt, counters);
 }
 
 // Camera-frame coordinates, outcodes and snapped positions of every vertex,
@@ -317,7 +340,7 @@ void MeshRasterizer::draw_triangle(int t, const raster::Target& tgt, raster::Cou
   const raster::FixedTriangle ft = front ? raster::FixedTriangle{{x0, x2, x1}, {y0, y2, y1}}
                                          : raster::FixedTriangle{{x0, x1, x2}, {y0, y1, y2}};
   ++stats_.triangles_drawn;
-  raster::rasterize(ft, plane, tri_id_[t], tgt, counters);
+  emit(ft, plane, tri_id_[t], tgt, counters);
 }
 
 // Near-plane / guard-band crossing: clip in the camera frame, then draw the
@@ -364,7 +387,7 @@ void MeshRasterizer::draw_clipped(int t, const raster::Target& tgt, raster::Coun
     const raster::FixedTriangle ft =
         front ? raster::FixedTriangle{{sx[0], sx[k + 1], sx[k]}, {sy[0], sy[k + 1], sy[k]}}
               : raster::FixedTriangle{{sx[0], sx[k], sx[k + 1]}, {sy[0], sy[k], sy[k + 1]}};
-    raster::rasterize(ft, plane, tri_id_[t], tgt, counters);
+    emit(ft, plane, tri_id_[t], tgt, counters);
   }
 }
 

@@ -21,6 +21,8 @@ namespace st {
 namespace raster {
 struct Target;
 struct Counters;
+struct FixedTriangle;
+struct DepthPlane;
 }  // namespace raster
 
 struct RasterConfig {
@@ -91,11 +93,14 @@ class MeshRasterizer {
 
  private:
   void order_for_locality(const Mesh& mesh);
-  void clear_buffers();
+  void clear_rows(int y_first, int y_last);
   raster::Target target();
   void transform_vertices();
   void draw_triangle(int t, const raster::Target& tgt, raster::Counters* counters);
   void draw_clipped(int t, const raster::Target& tgt, raster::Counters* counters);
+  void emit(const raster::FixedTriangle& ft, const raster::DepthPlane& plane, std::int32_t id,
+            const raster::Target& tgt, raster::Counters* counters);
+  void resolve_rows(int y_first, int y_last);
 
   RasterConfig config_;
   Pinhole camera_;
