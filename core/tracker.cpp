@@ -104,6 +104,7 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   mc.max_distance = config.max_hamming;
   if (Status s = matcher_.configure(mc); !s.ok()) return make_error("tracker: matcher: " + s.message());
   if (Status s = grid_.configure(config.width, config.height); !s.ok()) return make_error("tracker: grid: " + s.message());
+  if (Status s = motion_.configure(config.width, config.height); !s.ok()) return make_error("tracker: " + s.message());
   if (Status s = solver_.configure(kMaxKeypoints); !s.ok()) return make_error("tracker: pose: " + s.message());
   PnpRansacOptions ro;
   ro.min_inliers = config.min_inliers;
@@ -148,6 +149,9 @@ void TrackerImpl::start() {
   T_last_ = T_init_;
   velocity_ = SE3();
   lost_frames_ = strict_frames_left_ = 0;
+  last_inliers_ = 0;
+  last_depth_mm_ = 100.0;
+  motion_.reset();
   ref_keyframe_ = -1;
   reloc_cursor_ = 0;
 }

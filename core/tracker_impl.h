@@ -4,13 +4,16 @@
 // allocate nothing. Thread: the tracking thread.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
 
 #include "core/camera.h"
+#include "core/capacity.h"
 #include "core/feature_grid.h"
 #include "core/feature_set.h"
+#include "core/image_motion.h"
 #include "core/map.h"
 #include "core/orb_extractor.h"
 #include "core/orb_matcher.h"
@@ -55,6 +58,10 @@ class TrackerImpl {
   // Stages (tracker_track.cpp).
   bool extract(GrayView luma, bool with_organ_mask, TrackResult* r);
   int select_local_map(const SE3& T_camera_model, bool check_occlusion);
+  void reproject_local_map(const SE3& T_camera_model);
+  bool weak_first_pass(bool solved, const PoseEstimate& e) const;
+  double image_shift_px(const SE3& a, const SE3& b) const;
+  SE3 motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted);
   int match_local_map(float radius_px);
   bool solve_pose(SE3* T_camera_model, PoseEstimate* e);
   bool track_from(const SE3& T_predicted, float first_radius_px, PoseEstimate* e, TrackResult* r);
@@ -74,6 +81,8 @@ class TrackerImpl {
   TrackResult relocalise(GrayView luma, int frame_index);
   bool reloc_with_keyframe(int keyframe_id, PoseEstimate* e, TrackResult* r);
   void render_at(const SE3& T_camera_model);
+  int next_reloc_keyframe();
+  void rank_reloc_keyframes();
   double now_ms() const;
   void lap(Stage s, double* t_last_ms, TrackResult* r) const;
 
@@ -90,6 +99,7 @@ class TrackerImpl {
   OrbExtractor orb_;
   OrbMatcher matcher_;
   FeatureGrid grid_;
+  ImageMotion motion_;  // whole-view shift between frames: rotation prior under fast turns
   PoseSolver solver_;
   PnpRansac ransac_;
   TrackingMap map_;
@@ -120,6 +130,11 @@ class TrackerImpl {
   int ref_keyframe_ = -1;
   int reloc_cursor_ = 0;
   SE3 T_last_keyframe_;
+  int last_inliers_ = 0;            // inliers of the last accepted frame
+  double last_depth_mm_ = 100.0;    // mean inlier depth of the last accepted frame
+  SE3 lost_velocity_, T_dead_reckoned_;  // while lost: the last velocity, carried forward
+  std::array<std::int32_t, kMaxKeyframes> reloc_order_{};  // keyframes by distance to the last pose
+  int reloc_order_count_ = 0;
 };
 
 }  // namespace st
