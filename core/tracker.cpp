@@ -69,6 +69,7 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
   if (!(c.search_radius_px > 0.f) || !(c.wide_radius_px >= c.search_radius_px) || !(c.refine_radius_px > 0.f))
     return err("search radii must be positive and wide_radius_px >= search_radius_px");
   if (c.max_hamming < 1 || c.max_hamming > 256) return err("max_hamming outside [1, 256]");
+  if (c.local_map_per_cell < 0 || c.local_map_per_cell > 8) return err("local_map_per_cell outside [0, 8]");
   if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
       c.min_spread_cells < 0 || c.min_spread_cells > 16)
     return err("relocalisation settings out of range");

@@ -58,6 +58,7 @@ struct TrackerConfig {
   float search_radius_px = 15.f;   // around the constant-velocity prediction
   float wide_radius_px = 45.f;     // second pass when the first gives too few matches
   float refine_radius_px = 5.f;    // local-map search again at the first solved pose
+  int local_map_per_cell = 0;      // local-map cap per cell of a 48x27 image grid, most recently found first (0: no cap, <= 8; capped runs lose fast-s2, so off)
   int max_hamming = 100;           // descriptor distance limit of a match (of 256 bits)
   // Implausible motion: a pose this far from the prediction is lost (generous on purpose).
   double max_jump_deg = 25.0;

@@ -49,6 +49,7 @@ int TrackerImpl::select_local_map(const SE3& T_camera_model, bool check_occlusio
   const double log_scale = std::log(static_cast<double>(config_.scale_factor));
   const int capacity = static_cast<int>(projected_.size());
   const ImageView<const float> depth = raster_.depth();
+  std::fill(cap_count_.begin(), cap_count_.end(), 0);
   int n = 0;
   for (int id = 0; id < map_.point_high_water() && n < capacity; ++id) {
     const MapPoint& p = map_.point(id);
@@ -65,19 +66,45 @@ int TrackerImpl::select_local_map(const SE3& T_camera_model, bool check_occlusio
       const int x = static_cast<int>(std::lround(rp.x())), y = static_cast<int>(std::lround(rp.y()));
       if (!depth.contains(x, y) || !visible_at_depth(p_camera.z(), depth(x, y))) continue;
     }
+    const int slot = local_map_slot(ideal, p.last_seen_frame, &n);
+    if (slot < 0) continue;
     const Vec2 px = distorted_ ? camera_.distort_pixel(ideal) : ideal;
     const int octave = std::clamp(p.ref_octave + static_cast<int>(std::lround(std::log(ref / dist) / log_scale)), 0,
                                   config_.levels - 1);
-    ProjectedPoint& q = projected_[static_cast<std::size_t>(n)];
+    ProjectedPoint& q = projected_[static_cast<std::size_t>(slot)];
     q.x = static_cast<float>(px.x());
     q.y = static_cast<float>(px.y());
     q.predicted_octave = octave;
     q.ref_angle_deg = p.ref_angle_deg;
     q.descriptor = p.descriptor;
-    local_ids_[static_cast<std::size_t>(n++)] = id;
+    local_ids_[static_cast<std::size_t>(slot)] = id;
   }
   local_count_ = n;
   return n;
+}
+
+// The local-map slot for a point projecting at ideal: a new one (n grows)
+// while its cell has room, else the cell's slot with the oldest score if
+// this point's is newer, else -1 (not searched). Uncapped: always new.
+int TrackerImpl::local_map_slot(const Vec2& ideal, int score, int* n) {
+  const int per_cell = uncapped_ ? 0 : config_.local_map_per_cell;
+  if (per_cell <= 0) return (*n)++;
+  const int cx = std::clamp(static_cast<int>(ideal.x() * kCapCellsX / K_.width), 0, kCapCellsX - 1);
+  const int cy = std::clamp(static_cast<int>(ideal.y() * kCapCellsY / K_.height), 0, kCapCellsY - 1);
+  const auto cell = static_cast<std::size_t>(cy * kCapCellsX + cx);
+  const std::size_t base = cell * kMaxPerCell;
+  std::int32_t& count = cap_count_[cell];
+  if (count < per_cell) {
+    cap_slot_[base + static_cast<std::size_t>(count)] = *n;
+    cap_score_[base + static_cast<std::size_t>(count++)] = score;
+    return (*n)++;
+  }
+  std::size_t oldest = base;
+  for (std::size_t j = base + 1; j < base + static_cast<std::size_t>(per_cell); ++j)
+    if (cap_score_[j] < cap_score_[oldest]) oldest = j;
+  if (score <= cap_score_[oldest]) return -1;
+  cap_score_[oldest] = score;
+  return cap_slot_[oldest];
 }
 
 // Search by projection with radius_px (scaled by the predicted octave) into
@@ -188,6 +215,11 @@ bool TrackerImpl::track_from(const SE3& T_predicted, float first_radius_px, Pose
   bool solved = solve_pose(&T, e);
   lap(Stage::kPose, &t, r);
   if (weak_first_pass(solved, *e) && config_.wide_radius_px > radius) {
+    if (config_.local_map_per_cell > 0) {  // a hard frame: search the whole local map
+      uncapped_ = true;
+      r->local_map = select_local_map(T_predicted, true);
+      uncapped_ = false;
+    }
     match_local_map(config_.wide_radius_px);
     lap(Stage::kMatch, &t, r);
     SE3 T_wide = T_predicted;
