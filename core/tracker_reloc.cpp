@@ -25,6 +25,7 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   const SE3 T_turned = motion_prior(luma, T_dead_reckoned_, lost_velocity_ * T_dead_reckoned_);
   if (lost_frames_ <= config_.dead_reckoning_frames) T_dead_reckoned_ = T_turned;
   const SE3 T_guess = lost_frames_ <= config_.dead_reckoning_frames ? T_dead_reckoned_ : T_last_;
+  lap(Stage::kPyramid, &t, &r);  // image preparation: the small blurred image and its alignment
   render_at(T_guess);
   lap(Stage::kRaster, &t, &r);
   extract(luma, false, &r);  // whole valid image: the organ may be anywhere

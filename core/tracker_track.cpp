@@ -238,7 +238,7 @@ bool TrackerImpl::track_from(const SE3& T_predicted, float first_radius_px, Pose
   } else {
     reproject_local_map(T);
   }
-  match_local_map(moved_px > static_cast<double>(config_.refine_radius_px) ? config_.search_radius_px
+  match_local_map(moved_px > static_cast<double>(config_.search_radius_px) ? config_.search_radius_px
                                                                           : config_.refine_radius_px);
   lap(Stage::kMatch, &t, r);
   const bool second = solve_pose(&T, e);
@@ -316,6 +316,7 @@ TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
   TrackResult r;
   double t = now_ms();
   const SE3 T_predicted = motion_prior(luma, T_last_, velocity_ * T_last_);
+  lap(Stage::kPyramid, &t, &r);  // image preparation: the small blurred image and its alignment
   render_at(T_predicted);
   lap(Stage::kRaster, &t, &r);
   extract(luma, true, &r);
