@@ -238,7 +238,7 @@ bool TrackerImpl::track_from(const SE3& T_predicted, float first_radius_px, Pose
   } else {
     reproject_local_map(T);
   }
-  match_local_map(moved_px > static_cast<double>(config_.search_radius_px) ? config_.search_radius_px
+  match_local_map(moved_px > static_cast<double>(config_.refine_radius_px) ? config_.search_radius_px
                                                                           : config_.refine_radius_px);
   lap(Stage::kMatch, &t, r);
   const bool second = solve_pose(&T, e);
