@@ -73,6 +73,7 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
       c.ba_window_keyframes > kMaxKeyframes || c.ba_max_iterations < 1 || c.ba_global_max_iterations < 1 ||
       !(c.ba_max_time_s > 0) || !(c.ba_global_max_time_s > 0) || c.ba_max_observations < 1)
     return err("bundle adjustment settings out of range (w_shape >= 0, window in [2, kMaxKeyframes], limits > 0)");
+  if (c.local_map_per_cell < 0 || c.local_map_per_cell > 8) return err("local_map_per_cell outside [0, 8]");
   if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
       c.min_spread_cells < 0 || c.min_spread_cells > 16)
     return err("relocalisation settings out of range");
@@ -108,6 +109,7 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   mc.max_distance = config.max_hamming;
   if (Status s = matcher_.configure(mc); !s.ok()) return make_error("tracker: matcher: " + s.message());
   if (Status s = grid_.configure(config.width, config.height); !s.ok()) return make_error("tracker: grid: " + s.message());
+  if (Status s = motion_.configure(config.width, config.height); !s.ok()) return make_error("tracker: " + s.message());
   if (Status s = solver_.configure(kMaxKeypoints); !s.ok()) return make_error("tracker: pose: " + s.message());
   PnpRansacOptions ro;
   ro.min_inliers = config.min_inliers;
@@ -155,6 +157,9 @@ void TrackerImpl::start() {
   T_last_ = T_init_;
   velocity_ = SE3();
   lost_frames_ = strict_frames_left_ = 0;
+  last_inliers_ = 0;
+  last_depth_mm_ = 100.0;
+  motion_.reset();
   ref_keyframe_ = -1;
   reloc_cursor_ = 0;
   ba_window_pending_ = ba_global_pending_ = false;

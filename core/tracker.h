@@ -58,6 +58,7 @@ struct TrackerConfig {
   float search_radius_px = 15.f;   // around the constant-velocity prediction
   float wide_radius_px = 45.f;     // second pass when the first gives too few matches
   float refine_radius_px = 5.f;    // local-map search again at the first solved pose
+  int local_map_per_cell = 0;      // local-map cap per cell of a 48x27 image grid, most recently found first (0: no cap, <= 8; capped runs lose fast-s2, so off)
   int max_hamming = 100;           // descriptor distance limit of a match (of 256 bits)
   // Implausible motion: a pose this far from the prediction is lost (generous on purpose).
   double max_jump_deg = 25.0;
@@ -70,6 +71,8 @@ struct TrackerConfig {
   // Relocalisation and the stricter gates after it.
   int reloc_keyframes_per_frame = 2;    // brute-force budget per lost frame
   int strict_frames = 5;                // frames after relocalisation under strict gates
+  int dead_reckoning_frames = 10;       // lost: predict with the last velocity for this many frames
+  bool use_image_motion = true;         // rotation prior from the whole-image shift (core/image_motion.h)
   double strict_inlier_factor = 1.5;    // min_inliers multiplier when strict
   int min_spread_cells = 3;             // strict: inliers must occupy this many cells of a 4x4 grid
   // Bundle adjustment (core/bundle_adjustment.h), run by the mapping side

@@ -4,14 +4,17 @@
 // allocate nothing. Thread: the tracking thread.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
 
 #include "core/ba_channel.h"
 #include "core/camera.h"
+#include "core/capacity.h"
 #include "core/feature_grid.h"
 #include "core/feature_set.h"
+#include "core/image_motion.h"
 #include "core/map.h"
 #include "core/orb_extractor.h"
 #include "core/orb_matcher.h"
@@ -57,6 +60,11 @@ class TrackerImpl {
   // Stages (tracker_track.cpp).
   bool extract(GrayView luma, bool with_organ_mask, TrackResult* r);
   int select_local_map(const SE3& T_camera_model, bool check_occlusion);
+  int local_map_slot(const Vec2& ideal, int score, int* n);
+  void reproject_local_map(const SE3& T_camera_model);
+  bool weak_first_pass(bool solved, const PoseEstimate& e) const;
+  double image_shift_px(const SE3& a, const SE3& b) const;
+  SE3 motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted);
   int match_local_map(float radius_px);
   bool solve_pose(SE3* T_camera_model, PoseEstimate* e);
   bool track_from(const SE3& T_predicted, float first_radius_px, PoseEstimate* e, TrackResult* r);
@@ -82,6 +90,8 @@ class TrackerImpl {
   int add_job_keyframe(BaJob* job, int keyframe_id, bool fixed);
   void add_job_links(BaJob* job, int keyframe_id, int job_keyframe, bool add_points);
   void fill_job(BaJob* job, bool global);
+  int next_reloc_keyframe();
+  void rank_reloc_keyframes();
   double now_ms() const;
   void lap(Stage s, double* t_last_ms, TrackResult* r) const;
 
@@ -98,6 +108,7 @@ class TrackerImpl {
   OrbExtractor orb_;
   OrbMatcher matcher_;
   FeatureGrid grid_;
+  ImageMotion motion_;  // whole-view shift between frames: rotation prior under fast turns
   PoseSolver solver_;
   PnpRansac ransac_;
   TrackingMap map_;
@@ -137,6 +148,18 @@ class TrackerImpl {
   std::vector<std::int32_t> ba_point_index_;     // per map point slot: its index in the job being filled
   std::vector<std::int32_t> ba_keyframe_index_;  // per keyframe slot: likewise
   std::vector<std::int32_t> ba_order_;           // keyframe slots, newest first
+  int last_inliers_ = 0;            // inliers of the last accepted frame
+  double last_depth_mm_ = 100.0;    // mean inlier depth of the last accepted frame
+  SE3 lost_velocity_, T_dead_reckoned_;  // while lost: the last velocity, carried forward
+  std::array<std::int32_t, kMaxKeyframes> reloc_order_{};  // keyframes by distance to the last pose
+  int reloc_order_count_ = 0;
+  // Local-map cap: the image in kCapCellsX x kCapCellsY cells, each keeping
+  // at most TrackerConfig::local_map_per_cell points (the most recently
+  // found ones): a bounded, evenly spread search set.
+  static constexpr int kCapCellsX = 48, kCapCellsY = 27, kMaxPerCell = 8;
+  std::array<std::int32_t, kCapCellsX * kCapCellsY> cap_count_{};
+  bool uncapped_ = false;  // select_local_map ignores the cap (weak-frame retry)
+  std::array<std::int32_t, kCapCellsX * kCapCellsY * kMaxPerCell> cap_slot_{}, cap_score_{};
 };
 
 }  // namespace st

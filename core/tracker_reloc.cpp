@@ -1,11 +1,13 @@
 // Relocalisation when lost: features over the whole valid image; first a
-// cheap attempt by projection from the last good pose with the wide radius,
-// then brute-force matching against a bounded number of keyframes per frame
-// (round robin, the reference keyframe first), P3P RANSAC, LM, and the same
+// cheap attempt by projection from the dead-reckoned (then the last good)
+// pose with the wide radius, then brute-force matching against a bounded
+// number of keyframes per frame (the keyframes nearest the last good pose
+// first, then cycling through all), P3P RANSAC, LM, and the same
 // projection tracking at the found pose. Every candidate must pass the
 // strict gates (more inliers, spread, mask agreement). Tracking thread;
 // allocates nothing.
 #include <algorithm>
+#include <cmath>
 
 #include "core/tracker_impl.h"
 
@@ -15,25 +17,27 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   TrackResult r;
   double t = now_ms();
   ++lost_frames_;
-  render_at(T_last_);
+  // Dead reckoning: for the first frames the camera most likely keeps the
+  // motion it had when tracking failed (a fast turn); later the last pose is
+  // the better guess.
+  // The image motion keeps turning the guess (and stays continuous for the
+  // frames after relocalisation).
+  const SE3 T_turned = motion_prior(luma, T_dead_reckoned_, lost_velocity_ * T_dead_reckoned_);
+  if (lost_frames_ <= config_.dead_reckoning_frames) T_dead_reckoned_ = T_turned;
+  const SE3 T_guess = lost_frames_ <= config_.dead_reckoning_frames ? T_dead_reckoned_ : T_last_;
+  lap(Stage::kPyramid, &t, &r);  // image preparation: the small blurred image and its alignment
+  render_at(T_guess);
   lap(Stage::kRaster, &t, &r);
   extract(luma, false, &r);  // whole valid image: the organ may be anywhere
   lap(Stage::kDetect, &t, &r);
   const QualityGates strict = gates(true);
   PoseEstimate e;
-  bool found = track_from(T_last_, config_.wide_radius_px, &e, &r) && passes(e, strict);
+  bool found = track_from(T_guess, config_.wide_radius_px, &e, &r) && passes(e, strict);
   PoseEstimate best = e;  // reported measures when nothing passes: the attempt with most inliers
   t = now_ms();
+  if (reloc_order_count_ == 0) rank_reloc_keyframes();
   for (int j = 0; !found && j < config_.reloc_keyframes_per_frame && r.features > 0; ++j) {
-    int kf = -1;
-    if (j == 0 && lost_frames_ == 1 && ref_keyframe_ >= 0 && map_.keyframe(ref_keyframe_).alive) {
-      kf = ref_keyframe_;
-    } else {
-      for (int n = 0; n < map_.keyframe_capacity() && kf < 0; ++n) {
-        reloc_cursor_ = (reloc_cursor_ + 1) % map_.keyframe_capacity();
-        if (map_.keyframe(reloc_cursor_).alive) kf = reloc_cursor_;
-      }
-    }
+    const int kf = next_reloc_keyframe();
     if (kf < 0) break;
     e = PoseEstimate{};
     found = reloc_with_keyframe(kf, &e, &r) && passes(e, strict);
@@ -48,6 +52,35 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
     r.state = TrackState::kLost;
   }
   return r;
+}
+
+// Orders the alive keyframes by how close their view is to the last good
+// pose (camera centre distance plus viewing angle at the last tracked
+// depth): the scope most often comes back near where it was lost.
+void TrackerImpl::rank_reloc_keyframes() {
+  const Vec3 centre = -(T_last_.rotation().transpose() * T_last_.translation());
+  int n = 0;
+  for (int id = 0; id < map_.keyframe_capacity() && n < kMaxKeyframes; ++id)
+    if (map_.keyframe(id).alive) reloc_order_[static_cast<std::size_t>(n++)] = id;
+  const auto cost = [&](int id) {
+    const SE3& T = map_.keyframe(id).T_camera_model;
+    const Vec3 c = -(T.rotation().transpose() * T.translation());
+    return (c - centre).norm() + last_depth_mm_ * pose_delta(T, T_last_).angle_deg * M_PI / 180.0;
+  };
+  std::sort(reloc_order_.begin(), reloc_order_.begin() + n, [&](int a, int b) { return cost(a) < cost(b); });
+  reloc_order_count_ = n;
+  reloc_cursor_ = 0;
+}
+
+// The next keyframe of the ranked order (cycling), skipping culled ones; -1
+// when there is none.
+int TrackerImpl::next_reloc_keyframe() {
+  for (int tries = 0; tries < reloc_order_count_; ++tries) {
+    const int id = reloc_order_[static_cast<std::size_t>(reloc_cursor_)];
+    reloc_cursor_ = (reloc_cursor_ + 1) % reloc_order_count_;
+    if (map_.keyframe(id).alive) return id;
+  }
+  return -1;
 }
 
 // Brute-force matches of this frame against one keyframe's linked map

@@ -49,6 +49,7 @@ int TrackerImpl::select_local_map(const SE3& T_camera_model, bool check_occlusio
   const double log_scale = std::log(static_cast<double>(config_.scale_factor));
   const int capacity = static_cast<int>(projected_.size());
   const ImageView<const float> depth = raster_.depth();
+  std::fill(cap_count_.begin(), cap_count_.end(), 0);
   int n = 0;
   for (int id = 0; id < map_.point_high_water() && n < capacity; ++id) {
     const MapPoint& p = map_.point(id);
@@ -65,19 +66,45 @@ int TrackerImpl::select_local_map(const SE3& T_camera_model, bool check_occlusio
       const int x = static_cast<int>(std::lround(rp.x())), y = static_cast<int>(std::lround(rp.y()));
       if (!depth.contains(x, y) || !visible_at_depth(p_camera.z(), depth(x, y))) continue;
     }
+    const int slot = local_map_slot(ideal, p.last_seen_frame, &n);
+    if (slot < 0) continue;
     const Vec2 px = distorted_ ? camera_.distort_pixel(ideal) : ideal;
     const int octave = std::clamp(p.ref_octave + static_cast<int>(std::lround(std::log(ref / dist) / log_scale)), 0,
                                   config_.levels - 1);
-    ProjectedPoint& q = projected_[static_cast<std::size_t>(n)];
+    ProjectedPoint& q = projected_[static_cast<std::size_t>(slot)];
     q.x = static_cast<float>(px.x());
     q.y = static_cast<float>(px.y());
     q.predicted_octave = octave;
     q.ref_angle_deg = p.ref_angle_deg;
     q.descriptor = p.descriptor;
-    local_ids_[static_cast<std::size_t>(n++)] = id;
+    local_ids_[static_cast<std::size_t>(slot)] = id;
   }
   local_count_ = n;
   return n;
+}
+
+// The local-map slot for a point projecting at ideal: a new one (n grows)
+// while its cell has room, else the cell's slot with the oldest score if
+// this point's is newer, else -1 (not searched). Uncapped: always new.
+int TrackerImpl::local_map_slot(const Vec2& ideal, int score, int* n) {
+  const int per_cell = uncapped_ ? 0 : config_.local_map_per_cell;
+  if (per_cell <= 0) return (*n)++;
+  const int cx = std::clamp(static_cast<int>(ideal.x() * kCapCellsX / K_.width), 0, kCapCellsX - 1);
+  const int cy = std::clamp(static_cast<int>(ideal.y() * kCapCellsY / K_.height), 0, kCapCellsY - 1);
+  const auto cell = static_cast<std::size_t>(cy * kCapCellsX + cx);
+  const std::size_t base = cell * kMaxPerCell;
+  std::int32_t& count = cap_count_[cell];
+  if (count < per_cell) {
+    cap_slot_[base + static_cast<std::size_t>(count)] = *n;
+    cap_score_[base + static_cast<std::size_t>(count++)] = score;
+    return (*n)++;
+  }
+  std::size_t oldest = base;
+  for (std::size_t j = base + 1; j < base + static_cast<std::size_t>(per_cell); ++j)
+    if (cap_score_[j] < cap_score_[oldest]) oldest = j;
+  if (score <= cap_score_[oldest]) return -1;
+  cap_score_[oldest] = score;
+  return cap_slot_[oldest];
 }
 
 // Search by projection with radius_px (scaled by the predicted octave) into
@@ -118,20 +145,101 @@ bool TrackerImpl::solve_pose(SE3* T_camera_model, PoseEstimate* e) {
   return ok && e->inliers > 0;
 }
 
+// Moves the selected local map to T_camera_model without repeating the
+// selection tests (visibility, scale, occlusion): the refine pass reuses the
+// set chosen at the prediction, only the pixel positions change.
+void TrackerImpl::reproject_local_map(const SE3& T_camera_model) {
+  for (int i = 0; i < local_count_; ++i) {
+    const auto is = static_cast<std::size_t>(i);
+    const Vec3 p_camera = T_camera_model * map_.point(local_ids_[is]).p_model;
+    ProjectedPoint& q = projected_[is];
+    if (p_camera.z() < 1.0) {
+      q.x = q.y = -1e6f;  // behind the camera now: no candidate can match
+      continue;
+    }
+    const Vec2 ideal = K_.project(p_camera);
+    const Vec2 px = distorted_ ? camera_.distort_pixel(ideal) : ideal;
+    q.x = static_cast<float>(px.x());
+    q.y = static_cast<float>(px.y());
+  }
+}
+
+// Image motion (level-0 pixels) between two poses for the scene at the last
+// tracked depth: rotation plus parallax of the camera centre.
+double TrackerImpl::image_shift_px(const SE3& a, const SE3& b) const {
+  const PoseDelta d = pose_delta(a, b);
+  return K_.fx * (d.angle_deg * M_PI / 180.0 + (camera_centre(a) - camera_centre(b)).norm() / last_depth_mm_);
+}
+
+// The constant-velocity prediction T_predicted (from T_reference, the last
+// pose), turned about the camera centre so that the view centre moves as
+// the measured whole-image shift says. Under a sudden turn (with motion
+// blur) the constant-velocity guess is tens of pixels off; the shift of
+// small blurred images is not. Corrections of a few pixels are left alone:
+// there the constant-velocity prediction is as good.
+SE3 TrackerImpl::motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted) {
+  const Vec2 centre(K_.cx, K_.cy);
+  const Vec3 p_model = T_reference.inverse() * K_.unproject(centre, last_depth_mm_);
+  const Vec3 p_camera = T_predicted * p_model;
+  const Vec2 guess = p_camera.z() > 1.0 ? Vec2(K_.project(p_camera) - centre) : Vec2(Vec2::Zero());
+  Vec2 shift = Vec2::Zero();
+  if (!config_.use_image_motion || !motion_.update(luma, valid_view_, guess, &shift)) return T_predicted;
+  const Vec2 residual = shift - guess;
+  if (residual.norm() < 4.0) return T_predicted;
+  const Vec3 omega(-residual.y() / K_.fy, residual.x() / K_.fx, 0.0);
+  return SE3(so3_exp(omega), Vec3::Zero()) * T_predicted;
+}
+
+// The first pass explains few of its matches, or far fewer points than the
+// last frame: the motion changed faster than the constant-velocity
+// prediction allows (a sudden turn), so the search must go wider.
+bool TrackerImpl::weak_first_pass(bool solved, const PoseEstimate& e) const {
+  if (!solved) return true;
+  const double ratio = e.matches > 0 ? static_cast<double>(e.inliers) / e.matches : 0.0;
+  return ratio < 0.75 || 2 * e.inliers < last_inliers_;
+}
+
 // Pose from the features already extracted, starting at T_predicted (the
 // raster must hold a render near it: occlusion test of the local map).
+// The local map is selected once; a weak first pass is repeated with the
+// wide radius; the refine pass re-projects the same points at the solved
+// pose with a radius that covers how far the solve moved the view.
 bool TrackerImpl::track_from(const SE3& T_predicted, float first_radius_px, PoseEstimate* e, TrackResult* r) {
   double t = now_ms();
   r->local_map = select_local_map(T_predicted, true);
-  if (match_local_map(first_radius_px) < 2 * config_.min_inliers && config_.wide_radius_px > first_radius_px)
-    match_local_map(config_.wide_radius_px);
+  float radius = first_radius_px;
+  if (match_local_map(radius) < 2 * config_.min_inliers && config_.wide_radius_px > radius)
+    match_local_map(radius = config_.wide_radius_px);
   lap(Stage::kMatch, &t, r);
   SE3 T = T_predicted;
-  const bool first = solve_pose(&T, e);
+  bool solved = solve_pose(&T, e);
   lap(Stage::kPose, &t, r);
-  if (!first) return false;
-  select_local_map(T, true);
-  match_local_map(config_.refine_radius_px);
+  if (weak_first_pass(solved, *e) && config_.wide_radius_px > radius) {
+    if (config_.local_map_per_cell > 0) {  // a hard frame: search the whole local map
+      uncapped_ = true;
+      r->local_map = select_local_map(T_predicted, true);
+      uncapped_ = false;
+    }
+    match_local_map(config_.wide_radius_px);
+    lap(Stage::kMatch, &t, r);
+    SE3 T_wide = T_predicted;
+    PoseEstimate wide;
+    if (solve_pose(&T_wide, &wide) && (!solved || wide.inliers > e->inliers)) {
+      T = T_wide;
+      *e = wide;
+      solved = true;
+    }
+    lap(Stage::kPose, &t, r);
+  }
+  if (!solved) return false;
+  const double moved_px = image_shift_px(T_predicted, T);
+  if (moved_px > static_cast<double>(config_.wide_radius_px)) {
+    select_local_map(T, true);  // the view moved far: the predicted selection no longer fits
+  } else {
+    reproject_local_map(T);
+  }
+  match_local_map(moved_px > static_cast<double>(config_.refine_radius_px) ? config_.search_radius_px
+                                                                          : config_.refine_radius_px);
   lap(Stage::kMatch, &t, r);
   const bool second = solve_pose(&T, e);
   lap(Stage::kPose, &t, r);
@@ -161,10 +269,7 @@ void TrackerImpl::measure_final(PoseEstimate* e) {
     }
   e->mean_depth_mm = depth_n > 0 ? depth_sum / depth_n : 100.0;
   e->whitened_rms = depth_n > 0 ? std::sqrt(chi2_sum / depth_n) : 0.0;
-  const PoseDelta d = pose_delta(raster_pose_, T);
-  const double shift_px = K_.fx * (d.angle_deg * M_PI / 180.0 +
-                                   (camera_centre(raster_pose_) - camera_centre(T)).norm() / e->mean_depth_mm);
-  if (!raster_valid_ || shift_px > 3.0) render_at(T);
+  if (!raster_valid_ || image_shift_px(raster_pose_, T) > 3.0) render_at(T);
   const ImageView<const float> depth = raster_.depth();
   std::uint32_t cells = 0;
   int agree = 0;
@@ -210,7 +315,8 @@ bool TrackerImpl::passes(const PoseEstimate& e, const QualityGates& g) const {
 TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
   TrackResult r;
   double t = now_ms();
-  const SE3 T_predicted = velocity_ * T_last_;
+  const SE3 T_predicted = motion_prior(luma, T_last_, velocity_ * T_last_);
+  lap(Stage::kPyramid, &t, &r);  // image preparation: the small blurred image and its alignment
   render_at(T_predicted);
   lap(Stage::kRaster, &t, &r);
   extract(luma, true, &r);
@@ -229,7 +335,10 @@ TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
   } else {
     r.state = TrackState::kLost;
     lost_ = true;
-    lost_frames_ = 1;
+    lost_frames_ = 0;
+    lost_velocity_ = velocity_;
+    T_dead_reckoned_ = T_predicted;  // this frame's best guess (image motion included)
+    reloc_order_count_ = 0;  // ranked at the first relocalisation attempt
     velocity_ = SE3();
   }
   return r;
@@ -253,6 +362,8 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   r->T_camera_model = e.T_camera_model;
   velocity_ = state == TrackState::kTracking ? e.T_camera_model * T_last_.inverse() : SE3();
   T_last_ = e.T_camera_model;
+  last_inliers_ = e.inliers;
+  last_depth_mm_ = e.mean_depth_mm;
   lost_ = false;
   lost_frames_ = 0;
   update_counters(frame_index);

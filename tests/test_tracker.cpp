@@ -91,6 +91,9 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
   c = good;
   c.min_inliers = 2;
   rejects(c, "min_inliers");
+  c = good;
+  c.local_map_per_cell = 9;
+  rejects(c, "local_map_per_cell");
   Pinhole bad = seq.K;
   bad.fx = -1;
   CHECK_FALSE(t.configure(good, seq.mesh, CameraModel(bad, Distortion{}), seq.T_camera_model[0]).ok());
@@ -136,6 +139,31 @@ TEST_CASE("tracker: initialisation from one frame puts map points on the mesh") 
                    << err[err.size() * 95 / 100] << " mm");
   CHECK(err[err.size() / 2] < 0.2);
   CHECK(err[err.size() * 95 / 100] < 1.0);
+}
+
+TEST_CASE("tracker: a capped local map stays within its cap and still tracks the orbit") {
+  const Sequence& seq = orbit_sequence();
+  TrackerConfig cfg = test_config(seq.K);
+  cfg.local_map_per_cell = 3;
+  Tracker t;
+  REQUIRE(t.configure(cfg, seq.mesh, CameraModel(seq.K, Distortion{}), seq.T_camera_model[0]).ok());
+  t.start();
+  int lost = 0, max_local = 0;
+  double worst_deg = 0;
+  for (std::size_t i = 0; i < seq.frames.size(); ++i) {
+    const TrackResult r = t.step(seq.frames[i].view(), static_cast<int>(i));
+    max_local = std::max(max_local, r.local_map);
+    if (!r.pose_valid) {
+      ++lost;
+      continue;
+    }
+    worst_deg = std::max(worst_deg, pose_delta(r.T_camera_model, seq.T_camera_model[i]).angle_deg);
+  }
+  MESSAGE("capped orbit: lost " << lost << ", largest local map " << max_local << ", worst rotation " << worst_deg << " deg");
+  CHECK(lost == 0);
+  CHECK(worst_deg < 1.0);
+  CHECK(max_local <= 48 * 27 * 3);
+  CHECK(max_local > 0);
 }
 
 TEST_CASE("tracker: tracks a rendered orbit around the liver without losing it") {

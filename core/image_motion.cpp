@@ -1,0 +1,189 @@
+#include "core/image_motion.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace st {
+
+namespace {
+constexpr int kSearch = 12;      // coarse search window around the guess, small-image pixels (~96 level-0 px)
+constexpr int kIterations = 15;  // Gauss-Newton iterations
+}  // namespace
+
+Status ImageMotion::configure(int width, int height) {
+  if (width < 16 * kShrink || height < 16 * kShrink) return make_error("ImageMotion: frame smaller than 128x128");
+  w_ = width / kShrink;
+  h_ = height / kShrink;
+  const auto n = static_cast<std::size_t>(w_) * static_cast<std::size_t>(h_);
+  prev_.assign(n, 0.f);
+  cur_.assign(n, 0.f);
+  scratch_.assign(n, 0.f);
+  prev_mask_.assign(n, 0);
+  cur_mask_.assign(n, 0);
+  have_previous_ = false;
+  return Status::Ok();
+}
+
+// Block means (every other row of each 8x8 block: the blur hides the
+// difference, the cost halves), a 3x3 box blur, and a mask eroded by one
+// small pixel so the dark field-stop edge (which does not move with the
+// scene) stays out of the alignment.
+void ImageMotion::shrink(GrayView luma, GrayView valid, float* image, std::uint8_t* mask) {
+  const auto at = [this](int x, int y) { return static_cast<std::size_t>(y) * static_cast<std::size_t>(w_) + static_cast<std::size_t>(x); };
+  for (int sy = 0; sy < h_; ++sy) {
+    float* out = scratch_.data() + at(0, sy);
+    std::fill(out, out + w_, 0.f);
+    for (int r = 0; r < kShrink; r += 2) {
+      const std::uint8_t* row = luma.row(sy * kShrink + r);
+      for (int sx = 0; sx < w_; ++sx) {
+        int s = 0;
+        for (int k = 0; k < kShrink; ++k) s += row[sx * kShrink + k];
+        out[sx] += static_cast<float>(s);
+      }
+    }
+    for (int sx = 0; sx < w_; ++sx) {
+      const int cx = sx * kShrink + kShrink / 2, cy = sy * kShrink + kShrink / 2;
+      mask[at(sx, sy)] = valid.empty() || valid(cx, cy) != 0 ? 1 : 0;
+    }
+  }
+  for (int sy = 0; sy < h_; ++sy)
+    for (int sx = 0; sx < w_; ++sx) {
+      float s = 0.f;
+      int n = 0;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int x = sx + dx, y = sy + dy;
+          if (x < 0 || y < 0 || x >= w_ || y >= h_) continue;
+          s += scratch_[at(x, y)];
+          ++n;
+        }
+      image[at(sx, sy)] = s / static_cast<float>(n * kShrink * kShrink / 2);
+    }
+  // Erode: valid only with all 4 neighbours valid (inside the image).
+  for (int sy = 0; sy < h_; ++sy)
+    for (int sx = 0; sx < w_; ++sx) {
+      const bool inner = sx > 0 && sy > 0 && sx < w_ - 1 && sy < h_ - 1;
+      scratch_[at(sx, sy)] = inner && mask[at(sx, sy)] && mask[at(sx - 1, sy)] && mask[at(sx + 1, sy)] &&
+                                     mask[at(sx, sy - 1)] && mask[at(sx, sy + 1)]
+                                 ? 1.f
+                                 : 0.f;
+    }
+  for (std::size_t i = 0; i < prev_mask_.size(); ++i) mask[i] = scratch_[i] > 0.f ? 1 : 0;
+}
+
+// Mean squared difference at an integer shift over every stride-th pixel
+// in x and y.
+double ImageMotion::ssd_at(int dx, int dy, int stride, int* n) const {
+  double s = 0;
+  int count = 0;
+  for (int y = 0; y < h_; y += stride) {
+    const int yc = y + dy;
+    if (yc < 0 || yc >= h_) continue;
+    for (int x = 0; x < w_; x += stride) {
+      const int xc = x + dx;
+      if (xc < 0 || xc >= w_) continue;
+      const std::size_t ip = static_cast<std::size_t>(y * w_ + x), ic = static_cast<std::size_t>(yc * w_ + xc);
+      if (!prev_mask_[ip] || !cur_mask_[ic]) continue;
+      const double d = static_cast<double>(cur_[ic] - prev_[ip]);
+      s += d * d;
+      ++count;
+    }
+  }
+  *n = count;
+  return count > 0 ? s / count : 1e30;
+}
+
+// The integer shift of least SSD in [c - radius, c + radius]^2 (every
+// step-th), over pixels sampled every stride; 1e30 when no shift overlaps
+// enough valid pixels.
+double ImageMotion::search(int cx, int cy, int radius, int step, int stride, Vec2* t) const {
+  const int needed = (w_ * h_) / (4 * stride * stride);
+  double best = 1e30;
+  for (int dy = cy - radius; dy <= cy + radius; dy += step)
+    for (int dx = cx - radius; dx <= cx + radius; dx += step) {
+      int n = 0;
+      const double s = ssd_at(dx, dy, stride, &n);
+      if (n >= needed && s < best) {
+        best = s;
+        *t = Vec2(dx, dy);
+      }
+    }
+  return best;
+}
+
+float ImageMotion::cur(double x, double y, float* gx, float* gy) const {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+  const float* r0 = cur_.data() + static_cast<std::size_t>(y0 * w_ + x0);
+  const float* r1 = r0 + w_;
+  *gx = (1.f - fy) * (r0[1] - r0[0]) + fy * (r1[1] - r1[0]);
+  *gy = (1.f - fx) * (r1[0] - r0[0]) + fx * (r1[1] - r0[1]);
+  return (1.f - fy) * ((1.f - fx) * r0[0] + fx * r0[1]) + fy * ((1.f - fx) * r1[0] + fx * r1[1]);
+}
+
+// Gauss-Newton on the translation t (small-image pixels) with the mean of
+// both images' gradients (ESM): converges from a few pixels off.
+bool ImageMotion::refine(Vec2* t) const {
+  const int needed = (w_ * h_) / 4;
+  double last_step = 1e9;
+  for (int it = 0; it < kIterations; ++it) {
+    double h00 = 0, h01 = 0, h11 = 0, g0 = 0, g1 = 0;
+    int n = 0;
+    for (int y = 1; y < h_ - 1; ++y) {
+      const double yc = y + t->y();
+      if (yc < 0 || yc >= h_ - 1) continue;
+      for (int x = 1; x < w_ - 1; ++x) {
+        const double xc = x + t->x();
+        const std::size_t ip = static_cast<std::size_t>(y * w_ + x);
+        if (xc < 0 || xc >= w_ - 1 || !prev_mask_[ip]) continue;
+        const std::size_t ic = static_cast<std::size_t>(std::lround(yc)) * static_cast<std::size_t>(w_) +
+                               static_cast<std::size_t>(std::lround(xc));
+        if (!cur_mask_[ic]) continue;
+        float cgx = 0.f, cgy = 0.f;
+        const float c = cur(xc, yc, &cgx, &cgy);
+        const double jx = 0.25 * static_cast<double>(prev_[ip + 1] - prev_[ip - 1]) + 0.5 * static_cast<double>(cgx);
+        const double jy = 0.25 * static_cast<double>(prev_[ip + static_cast<std::size_t>(w_)] - prev_[ip - static_cast<std::size_t>(w_)]) +
+                          0.5 * static_cast<double>(cgy);
+        const double r = static_cast<double>(c - prev_[ip]);
+        h00 += jx * jx;
+        h01 += jx * jy;
+        h11 += jy * jy;
+        g0 += jx * r;
+        g1 += jy * r;
+        ++n;
+      }
+    }
+    const double det = h00 * h11 - h01 * h01;
+    if (n < needed || !(det > 1e-9 * (h00 + h11) * (h00 + h11))) return false;
+    // r(t + d) ~ r + J d = 0 -> d = -H^-1 g.
+    const Vec2 d(-(h11 * g0 - h01 * g1) / det, -(h00 * g1 - h01 * g0) / det);
+    *t += d;
+    if (!t->allFinite() || t->norm() > w_) return false;
+    if (d.norm() < 0.02) return true;
+    last_step = d.norm();
+  }
+  return last_step < 0.1;  // slow final steps (a blurred frame): close enough
+}
+
+bool ImageMotion::update(GrayView luma, GrayView valid, const Vec2& guess_px, Vec2* shift_px) {
+  if (luma.width / kShrink != w_ || luma.height / kShrink != h_ || w_ == 0) return false;
+  shrink(luma, valid, cur_.data(), cur_mask_.data());
+  bool ok = false;
+  if (have_previous_ && guess_px.allFinite()) {
+    const int gx = static_cast<int>(std::lround(std::clamp(guess_px.x() / kShrink, -1.0 * w_, 1.0 * w_)));
+    const int gy = static_cast<int>(std::lround(std::clamp(guess_px.y() / kShrink, -1.0 * h_, 1.0 * h_)));
+    // Coarse: every second shift on a sparse pixel set; fine: the 3x3
+    // shifts around the coarse best on a denser one; then Gauss-Newton.
+    Vec2 t(gx, gy);
+    double best = search(gx, gy, kSearch, 2, 4, &t);
+    if (best < 1e30) best = search(static_cast<int>(t.x()), static_cast<int>(t.y()), 1, 1, 2, &t);
+    ok = best < 1e30 && refine(&t);
+    if (ok) *shift_px = t * static_cast<double>(kShrink);
+  }
+  prev_.swap(cur_);
+  prev_mask_.swap(cur_mask_);
+  have_previous_ = true;
+  return ok;
+}
+
+}  // namespace st
