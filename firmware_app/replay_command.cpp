@@ -1,4 +1,5 @@
-// scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-ba] [--no-shape-ba] [--ring N]:
+// scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba] [--no-shape-ba]
+//   [--ring N]:
 // replays a sequence through the tracker (hal/replay.h) into the output
 // folder. Exit status: 0 done, 1 the sequence or the replay failed (a clear
 // message on stderr; the output written so far stays), 2 bad command line.
@@ -24,6 +25,7 @@ struct ReplayArgs {
   std::string sequence, out;
   bool realtime = false;
   bool use_mask = true;
+  bool use_image_motion = true;  // --no-image-motion: constant-velocity prediction only (ablation)
   bool use_ba = true;       // --no-ba: no bundle adjustment (tracking and mesh-depth points only)
   bool shape_ba = true;     // --no-shape-ba: BA with w_shape = 0
   int ring_slots = 6;
@@ -45,6 +47,8 @@ bool parse_args(Args args, ReplayArgs* a) {
       a->realtime = true;
     } else if (!std::strcmp(arg, "--no-mask")) {
       a->use_mask = false;
+    } else if (!std::strcmp(arg, "--no-image-motion")) {
+      a->use_image_motion = false;
     } else if (!std::strcmp(arg, "--no-ba")) {
       a->use_ba = false;
     } else if (!std::strcmp(arg, "--no-shape-ba")) {
@@ -75,6 +79,7 @@ TrackerConfig tracker_config(const LoadedSequence& seq, const ReplayArgs& a) {
   c.height = seq.config.height;
   c.use_mask = a.use_mask;
   c.use_ba = a.use_ba;
+  c.use_image_motion = a.use_image_motion;
   if (!a.shape_ba) c.w_shape = 0.0;
   c.now_ns = &platform::monotonic_ns;
   return c;
@@ -116,7 +121,8 @@ std::unique_ptr<StreamLink> start_stream_link(const ReplayArgs& a, const LoadedS
 int run_replay(Args argv) {
   ReplayArgs args;
   if (!parse_args(argv, &args)) {
-    std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-ba] [--no-shape-ba]"
+    std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba]"
+                 " [--no-shape-ba]"
                  " [--ring N]\n"
                  "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
     return 2;
@@ -152,6 +158,7 @@ int run_replay(Args argv) {
   opt.progress = ::isatty(STDERR_FILENO) == 1;
   opt.ring_slots = args.ring_slots;
   opt.summary_extra = {{"use_mask", args.use_mask ? 1.0 : 0.0}, {"use_ba", args.use_ba ? 1.0 : 0.0},
+                       {"use_image_motion", args.use_image_motion ? 1.0 : 0.0},
                        {"w_shape", args.shape_ba ? TrackerConfig{}.w_shape : 0.0}, {"width", c.width},
                        {"height", c.height}};
   auto stats = run_replay(seq.value(), *processor, opt);
