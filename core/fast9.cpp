@@ -27,25 +27,13 @@ int best_arc_min(const int* d) {
 }
 
 #if CV_SIMD128
-// Loads and constants for the 16-lane (SSE / NEON) and 32-lane (AVX2) blocks,
-// so that one template scores both widths.
-inline cv::v_uint8x16 load_u8(const std::uint8_t* p, cv::v_uint8x16) { return cv::v_load(p); }
-inline cv::v_uint8x16 setall_u8(std::uint8_t v, cv::v_uint8x16) { return cv::v_setall_u8(v); }
-#endif
-#if CV_SIMD256
-inline cv::v_uint8x32 load_u8(const std::uint8_t* p, cv::v_uint8x32) { return cv::v256_load(p); }
-inline cv::v_uint8x32 setall_u8(std::uint8_t v, cv::v_uint8x32) { return cv::v256_setall_u8(v); }
-#endif
-
-#if CV_SIMD128
-// best_arc_min per lane: d[0..15] are the per-lane circle differences
+// best_arc_min for 16 pixels: d[0..15] are the per-lane circle differences
 // (saturated at 0), the arcs wrap around: 4 x 16 minima and 15 maxima.
-template <class V>
-V best_arc_min_simd(const V* d) {
-  V m2[16], m4[16];
+cv::v_uint8x16 best_arc_min_simd(const cv::v_uint8x16* d) {
+  cv::v_uint8x16 m2[16], m4[16];
   for (int i = 0; i < 16; ++i) m2[i] = cv::v_min(d[i], d[(i + 1) & 15]);
   for (int i = 0; i < 16; ++i) m4[i] = cv::v_min(m2[i], m2[(i + 2) & 15]);
-  V best = setall_u8(0, V());
+  cv::v_uint8x16 best = cv::v_setzero_u8();
   for (int i = 0; i < 16; ++i)
     best = cv::v_max(best, cv::v_min(cv::v_min(m4[i], m4[(i + 4) & 15]), d[(i + 8) & 15]));
   return best;
@@ -79,8 +67,7 @@ Status Fast9Detector::configure(int max_width) {
 #if CV_SIMD128
 namespace {
 
-// Scores the V::nlanes (16 or 32) pixels from q (lanes outside lane_keep
-// ignored); appends
+// Scores 16 pixels q[0..15] (lanes outside lane_keep ignored); appends
 // corners (score > threshold) to scores/xs. The cheap pre-test (a 9-arc holds
 // two neighbouring compass pixels {0, 4, 8, 12}) picks each lane's polarity:
 // a lane that can only be a dark corner is scored on inverted intensities
@@ -88,32 +75,31 @@ namespace {
 // be both is the dark polarity scored again for all lanes. The score of a
 // lane is max(bright, dark); a polarity failing its pre-test is <= threshold,
 // so leaving it out never changes a corner's score.
-template <class V>
-void score_block(const std::uint8_t* q, const std::ptrdiff_t* off, int threshold, int x,
-                 unsigned lane_keep, std::uint8_t* scores, std::uint16_t* xs, int* n) {
-  const V tv = setall_u8(static_cast<std::uint8_t>(threshold), V());
-  const V v = load_u8(q, V());
-  const V hi = v + tv, lo = v - tv;  // saturating
-  const V c0 = load_u8(q + off[0], V()), c4 = load_u8(q + off[4], V());
-  const V c8 = load_u8(q + off[8], V()), c12 = load_u8(q + off[12], V());
-  const V bright = ((c0 > hi) | (c8 > hi)) & ((c4 > hi) | (c12 > hi));
-  const V dark = ((c0 < lo) | (c8 < lo)) & ((c4 < lo) | (c12 < lo));
+void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int threshold, int x,
+                   unsigned lane_keep, std::uint8_t* scores, std::uint16_t* xs, int* n) {
+  const cv::v_uint8x16 tv = cv::v_setall_u8(static_cast<std::uint8_t>(threshold));
+  const cv::v_uint8x16 v = cv::v_load(q);
+  const cv::v_uint8x16 hi = v + tv, lo = v - tv;  // saturating
+  const cv::v_uint8x16 c0 = cv::v_load(q + off[0]), c4 = cv::v_load(q + off[4]);
+  const cv::v_uint8x16 c8 = cv::v_load(q + off[8]), c12 = cv::v_load(q + off[12]);
+  const cv::v_uint8x16 bright = ((c0 > hi) | (c8 > hi)) & ((c4 > hi) | (c12 > hi));
+  const cv::v_uint8x16 dark = ((c0 < lo) | (c8 < lo)) & ((c4 < lo) | (c12 < lo));
   if (!cv::v_check_any(bright | dark)) return;
-  V d[16];
+  cv::v_uint8x16 d[16];
   // Lanes that can only be dark: inverted.
-  const V flip = dark & ~bright;
-  const V vf = v ^ flip;
-  for (int i = 0; i < 16; ++i) d[i] = (load_u8(q + off[i], V()) ^ flip) - vf;  // saturating
-  V score = best_arc_min_simd(d);
+  const cv::v_uint8x16 flip = dark & ~bright;
+  const cv::v_uint8x16 vf = v ^ flip;
+  for (int i = 0; i < 16; ++i) d[i] = (cv::v_load(q + off[i]) ^ flip) - vf;  // saturating
+  cv::v_uint8x16 score = best_arc_min_simd(d);
   if (cv::v_check_any(bright & dark)) {
-    const V vi = ~v;
-    for (int i = 0; i < 16; ++i) d[i] = ~load_u8(q + off[i], V()) - vi;
+    const cv::v_uint8x16 vi = ~v;
+    for (int i = 0; i < 16; ++i) d[i] = ~cv::v_load(q + off[i]) - vi;
     score = cv::v_max(score, best_arc_min_simd(d));
   }
   // A lane is a corner iff its score exceeds the threshold.
   unsigned mask = static_cast<unsigned>(cv::v_signmask(score > tv)) & lane_keep;
   if (!mask) return;
-  alignas(32) std::uint8_t lane_score[32];
+  alignas(16) std::uint8_t lane_score[16];
   cv::v_store_aligned(lane_score, score);
   while (mask) {
     const int lane = std::countr_zero(mask);
@@ -134,26 +120,9 @@ void Fast9Detector::score_row(GrayView image, int y, int threshold, int x_begin,
 #if CV_SIMD128
   std::ptrdiff_t off[16];
   for (int i = 0; i < 16; ++i) off[i] = kCircleDy[i] * image.stride + kCircleDx[i];
-#if CV_SIMD256
-  // 32 pixels per block (AVX2 boards); the lanes of disallowed 16-pixel
-  // chunks are masked out (their scores would change the suppression).
-  for (; x + 32 <= x_end; x += 32) {
-    unsigned keep = 0xFFFFFFFFu;
-    if (allowed) {
-      keep = 0;
-      for (int c = x >> 4; c <= (x + 31) >> 4; ++c) {
-        if (!allowed[c]) continue;
-        const int l0 = std::max(c * 16 - x, 0), l1 = std::min(c * 16 + 16 - x, 32);  // lanes [l0, l1)
-        keep |= static_cast<unsigned>((std::uint64_t{1} << l1) - (std::uint64_t{1} << l0));
-      }
-      if (!keep) continue;
-    }
-    score_block<cv::v_uint8x32>(p + x, off, threshold, x, keep, scores, xs, n);
-  }
-#endif
   for (; x + 16 <= x_end; x += 16) {
     if (allowed && !(allowed[x >> 4] | allowed[(x + 15) >> 4])) continue;
-    score_block<cv::v_uint8x16>(p + x, off, threshold, x, 0xFFFFu, scores, xs, n);
+    score_block16(p + x, off, threshold, x, 0xFFFFu, scores, xs, n);
   }
   // Tail: one overlapping block ending at x_end, only the lanes not yet seen.
   if (x < x_end && x_end - 16 >= x_begin) {
@@ -161,7 +130,7 @@ void Fast9Detector::score_row(GrayView image, int y, int threshold, int x_begin,
     unsigned keep = 0;
     for (int lane = x - xb; lane < 16; ++lane)
       if (!allowed || allowed[(xb + lane) >> 4]) keep |= 1u << lane;
-    if (keep) score_block<cv::v_uint8x16>(p + xb, off, threshold, xb, keep, scores, xs, n);
+    if (keep) score_block16(p + xb, off, threshold, xb, keep, scores, xs, n);
     x = x_end;
   }
 #endif

@@ -7,7 +7,7 @@
 // relaxed threshold also answers "is it a corner at the strict threshold".
 //
 // configure() allocates the rolling row buffers; detect() allocates nothing.
-// SIMD (16 pixels at a time, 32 on AVX2 boards) through OpenCV universal intrinsics, with a
+// SIMD (16 pixels at a time) through OpenCV universal intrinsics, with a
 // scalar path that builds everywhere. Single-threaded: one instance per thread.
 #pragma once
 
