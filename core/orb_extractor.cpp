@@ -39,6 +39,22 @@ void block_spans(int mask_n, int image_n, int blocks, std::int32_t* lo, std::int
   }
 }
 
+// Spreading takes every cell's best, then every cell's second best, ...:
+// rank r holds the cells with more than r corners (hist[s] = cells holding
+// s). Returns how many ranks fit whole into target and their corners in
+// *taken. The cells must hold more than target corners in all.
+int ranks_taken_whole(const std::int32_t* hist, int ncells, int target, int* taken) {
+  int cells_above = ncells - hist[0];
+  int full_ranks = 0;
+  *taken = 0;
+  while (*taken + cells_above <= target) {
+    *taken += cells_above;
+    ++full_ranks;
+    cells_above -= hist[full_ranks];
+  }
+  return full_ranks;
+}
+
 }  // namespace
 
 // Per 16x16 level-0 block: any[b] = some mask pixel touching it is set,
@@ -117,6 +133,7 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   const std::size_t cap = static_cast<std::size_t>(width) * height / 4 + 64;
   fast_out_.assign(cap, FastCorner{});
   cand_.assign(cap, Candidate{});
+  cand_tmp_.assign(cap, Candidate{});
   cell_has_strict_.assign(static_cast<std::size_t>(ceil_div(width, c.threshold_cell_px) + 1) *
                               (ceil_div(height, c.threshold_cell_px) + 1), 0);
   organ_dilated_.assign(static_cast<std::size_t>(width) * height, 0);
@@ -141,6 +158,7 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
     const std::size_t scells = static_cast<std::size_t>(ceil_div(width, c.min_spread_cell_px)) *
                                ceil_div(height, c.min_spread_cell_px);
     spread_count_.assign(scells, 0);
+    spread_begin_.assign(scells + 1, 0);
     spread_open_.assign(scells, 0);
   }
   spread_open_chunks_.assign(static_cast<std::size_t>(ceil_div(width, kBlock)) + 1, 0);
@@ -269,7 +287,7 @@ int OrbExtractor::filter_strict(int level, int n_fast) {
     if (use_chunks_ && !inside_masks(level, c.x, c.y)) continue;
     const std::uint32_t ci = static_cast<std::uint32_t>((c.y / cell) * cells_x + c.x / cell);
     cell_has_strict_[ci] = 1;
-    cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score, 0};
+    cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score};
   }
   return n;
 }
@@ -335,7 +353,7 @@ int OrbExtractor::filter_relaxed(int level, int n_fast, int n, int max_score) {
       if (!spread_open_[static_cast<std::size_t>((c.y / sc) * ceil_div(img.width, sc) + c.x / sc)]) continue;
     }
     if (use_chunks_ && !inside_masks(level, c.x, c.y)) continue;
-    cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score, 0};
+    cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score};
   }
   return n;
 }
@@ -350,39 +368,61 @@ int OrbExtractor::spread_cell_px(int level, int target) const {
                                              static_cast<float>(std::max(target, 1)))));
 }
 
+// Keeps target of the n candidates: every cell's best first, then every
+// cell's second best, ... (rank r of a cell = its r-th best key); the last,
+// partly taken rank goes to the strongest keys. O(n): candidates are
+// bucketed by cell (counting sort), the ranks taken whole follow from the
+// histogram of cell counts, and each cell only partitions its best ones.
 int OrbExtractor::spread(int level, int n, int target) {
   if (n <= target) return n;
   const GrayView img = pyramid_.level(level);
   const int cell = spread_cell_px(level, target);
   const int cells_x = ceil_div(img.width, cell);
+  const int ncells = cells_x * ceil_div(img.height, cell);
   Candidate* c = cand_.data();
-  if (cells_x == 1 && cell >= img.height) {  // one cell: the strongest, in O(n)
-    std::nth_element(c, c + target, c + n, [](const Candidate& a, const Candidate& b) { return a.key > b.key; });
+  const auto stronger = [](const Candidate& a, const Candidate& b) { return a.key > b.key; };
+  if (ncells == 1) {  // one cell: the strongest
+    std::nth_element(c, c + target, c + n, stronger);
     return target;
   }
-  for (int i = 0; i < n; ++i) c[i].cell = static_cast<std::uint32_t>((c[i].y / cell) * cells_x + c[i].x / cell);
-  std::sort(c, c + n, [](const Candidate& a, const Candidate& b) {
-    return a.cell != b.cell ? a.cell < b.cell : a.key > b.key;
-  });
-  // Rank inside each cell; count how many corners each rank holds.
-  int max_rank = 0;
+  // Bucket by cell into cand_tmp_: begin[i] .. begin[i + 1] is cell i.
+  std::int32_t* begin = spread_begin_.data();
+  std::fill(begin, begin + ncells + 1, 0);
   for (int i = 0; i < n; ++i) {
-    const int r = (i > 0 && c[i].cell == c[i - 1].cell) ? std::min(c[i - 1].rank + 1, 65535) : 0;
-    c[i].rank = static_cast<std::uint16_t>(r);
-    max_rank = std::max(max_rank, r);
+    c[i].cell = static_cast<std::uint32_t>((c[i].y / cell) * cells_x + c[i].x / cell);
+    ++begin[c[i].cell + 1];
   }
-  std::int32_t* rank_count = rank_count_.data();
-  std::fill(rank_count, rank_count + max_rank + 1, 0);
-  for (int i = 0; i < n; ++i) ++rank_count[c[i].rank];
-  int full_ranks = 0, taken = 0;  // ranks taken whole
-  while (full_ranks <= max_rank && taken + rank_count[full_ranks] <= target) taken += rank_count[full_ranks++];
-  // Keep ranks < full_ranks; then the strongest of rank full_ranks fill up.
-  auto* split = std::partition(c, c + n, [&](const Candidate& a) { return a.rank < full_ranks; });
-  auto* rest_end = std::partition(split, c + n, [&](const Candidate& a) { return a.rank == full_ranks; });
-  const int fill = std::min<int>(target - taken, static_cast<int>(rest_end - split));
-  if (fill > 0 && fill < rest_end - split)
-    std::nth_element(split, split + fill, rest_end,
-                     [](const Candidate& a, const Candidate& b) { return a.key > b.key; });
+  int max_count = 0;
+  for (int i = 0; i < ncells; ++i) {
+    max_count = std::max(max_count, begin[i + 1]);
+    begin[i + 1] += begin[i];
+  }
+  std::int32_t* fill_pos = spread_count_.data();
+  std::copy(begin, begin + ncells, fill_pos);
+  Candidate* b = cand_tmp_.data();
+  for (int i = 0; i < n; ++i) b[fill_pos[c[i].cell]++] = c[i];
+  std::int32_t* hist = rank_count_.data();
+  std::fill(hist, hist + max_count + 1, 0);
+  for (int i = 0; i < ncells; ++i) ++hist[begin[i + 1] - begin[i]];
+  int taken = 0;
+  const int full_ranks = ranks_taken_whole(hist, ncells, target, &taken);
+  // Ranks < full_ranks of every cell go to the front of cand_, the rank
+  // full_ranks candidates (one per fuller cell) after them.
+  int out = 0, n_next = 0;
+  Candidate* rank_next = c + taken;
+  for (int i = 0; i < ncells; ++i) {
+    Candidate* cb = b + begin[i];
+    const int count = begin[i + 1] - begin[i];
+    if (count > full_ranks) {
+      std::nth_element(cb, cb + full_ranks, cb + count, stronger);
+      rank_next[n_next++] = cb[full_ranks];
+    }
+    const int keep = std::min(count, full_ranks);
+    std::copy(cb, cb + keep, c + out);
+    out += keep;
+  }
+  const int fill = std::min(target - taken, n_next);
+  if (fill > 0 && fill < n_next) std::nth_element(rank_next, rank_next + fill, rank_next + n_next, stronger);
   return taken + std::max(fill, 0);
 }
 
@@ -413,13 +453,8 @@ bool OrbExtractor::close_spread_cells(int level, int n, int target) {
   std::int32_t* hist = rank_count_.data();
   std::fill(hist, hist + max_count + 1, 0);
   for (int i = 0; i < ncells; ++i) ++hist[count[i]];
-  int cells_above = ncells - hist[0];
-  int full_ranks = 0, taken = 0;
-  while (taken + cells_above <= target) {  // ends: the ranks hold n > target corners
-    taken += cells_above;
-    ++full_ranks;
-    cells_above -= hist[full_ranks];
-  }
+  int taken = 0;
+  const int full_ranks = ranks_taken_whole(hist, ncells, target, &taken);
   bool any_open = false;
   for (int i = 0; i < ncells; ++i) {
     spread_open_[static_cast<std::size_t>(i)] = count[i] <= full_ranks ? 1 : 0;

@@ -89,7 +89,6 @@ class OrbExtractor {
     float key;            // what spreading ranks by (FAST score, then Harris response)
     std::uint16_t x, y;   // level pixels
     std::uint8_t score;   // FAST score
-    std::uint16_t rank;   // order inside its spreading cell by key (0 = best), capped at 65535
   };
   void prepare_masks(GrayView organ, GrayView valid);
   void block_any_all(GrayView mask, std::uint8_t* any, std::uint8_t* all);
@@ -113,6 +112,7 @@ class OrbExtractor {
   std::array<int, kMaxPyramidLevels> level_target_{};
   std::vector<FastCorner> fast_out_;
   std::vector<Candidate> cand_;
+  std::vector<Candidate> cand_tmp_;          // spread(): candidates bucketed by cell
   std::vector<std::uint8_t> cell_has_strict_;
   std::vector<std::uint8_t> organ_dilated_;  // organ mask dilated by the margin (mask resolution)
   std::vector<std::uint8_t> organ_tmp_;                // morph_square scratch: rows
@@ -125,8 +125,9 @@ class OrbExtractor {
   std::vector<std::uint8_t> chunk_relaxed_;  // chunks the relaxed pass scores (same layout)
   std::vector<std::uint8_t> smooth_tiles_;   // per level: 32x32 tiles that need smoothing
   std::vector<std::uint8_t> cell_need_;      // per threshold-cell row x chunk: any cell without strict
-  std::vector<std::int32_t> rank_count_;     // spread(): corners per rank (one per candidate at most)
-  std::vector<std::int32_t> spread_count_;   // per spreading cell: strict corners
+  std::vector<std::int32_t> rank_count_;     // spread(), close_spread_cells(): cells per corner count
+  std::vector<std::int32_t> spread_count_;   // per spreading cell: strict corners (spread(): bucket fill)
+  std::vector<std::int32_t> spread_begin_;   // spread(): first bucket index per cell, + end
   std::vector<std::uint8_t> spread_open_;    // per spreading cell: a relaxed corner could still be kept
   std::vector<std::uint8_t> spread_open_chunks_;  // per 16-pixel chunk of one row: touches an open cell
   std::array<int, 2> relaxed_cascade_{};     // thresholds of the relaxed passes, descending
