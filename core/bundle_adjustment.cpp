@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "core/capacity.h"
@@ -35,20 +36,45 @@ class Se3LeftManifold final : public ceres::Manifold {
   }
 };
 
+// The linearization of one pose block, recomputed only when the block's
+// values change: Ceres evaluates all ~1000 residuals of a pose at the same
+// values, so the quaternion-to-matrix and minus-Jacobian work is done once
+// per pose and evaluation instead of once per residual. Mutable from the
+// const Evaluate(): safe because the solver runs single-threaded.
+class PoseCache {
+ public:
+  void reset() { x_[0] = std::numeric_limits<double>::quiet_NaN(); }  // NaN != anything: recompute
+  const PoseLinearization& at(const double* x) const {
+    bool same = true;
+    for (int k = 0; k < kPoseParams; ++k) same = same && x_[k] == x[k];
+    if (!same) {
+      for (int k = 0; k < kPoseParams; ++k) x_[k] = x[k];
+      pose_linearization(x, &lin_);
+    }
+    return lin_;
+  }
+
+ private:
+  mutable double x_[kPoseParams] = {std::numeric_limits<double>::quiet_NaN()};
+  mutable PoseLinearization lin_;
+};
+
 class ReprojectionCost final : public ceres::SizedCostFunction<2, 7, 3> {
  public:
-  void set(const Pinhole& K, const Vec2& px_ideal, double info, double min_depth_mm) {
+  void set(const Pinhole& K, const Vec2& px_ideal, double info, double min_depth_mm, const PoseCache* pose) {
+    pose_ = pose;
     K_ = K;
     px_ = px_ideal;
     sqrt_info_ = std::sqrt(info);
     min_depth_mm_ = min_depth_mm;
   }
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    return reprojection_cost(K_, px_, sqrt_info_, min_depth_mm_, parameters[0], parameters[1], residuals,
+    return reprojection_cost(K_, px_, sqrt_info_, min_depth_mm_, pose_->at(parameters[0]), parameters[1], residuals,
                              jacobians ? jacobians[0] : nullptr, jacobians ? jacobians[1] : nullptr);
   }
 
  private:
+  const PoseCache* pose_ = nullptr;
   Pinhole K_;
   Vec2 px_ = Vec2::Zero();
   double sqrt_info_ = 1, min_depth_mm_ = 1;
@@ -95,6 +121,7 @@ struct BundleAdjuster::Impl {
   std::unique_ptr<ReprojectionCost[]> reprojection_costs;
   std::unique_ptr<ShapeCost[]> shape_costs;
   std::unique_ptr<PlaneCost[]> plane_costs;
+  std::unique_ptr<PoseCache[]> pose_caches;  // per job keyframe, kMaxKeyframes
   ceres::Problem::Options problem_options;
   ceres::Solver::Options solver_options;
   ceres::Problem* problem = nullptr;  // during solve() only
@@ -124,6 +151,7 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   impl_->reprojection_costs = std::make_unique<ReprojectionCost[]>(static_cast<std::size_t>(max_observations));
   impl_->shape_costs = std::make_unique<ShapeCost[]>(static_cast<std::size_t>(max_points));
   impl_->plane_costs = std::make_unique<PlaneCost[]>(static_cast<std::size_t>(max_points));
+  impl_->pose_caches = std::make_unique<PoseCache[]>(static_cast<std::size_t>(kMaxKeyframes));
   planes_.assign(static_cast<std::size_t>(max_points), ShapePlane{});
   for (int i = 0; i < max_points; ++i) {
     impl_->shape_costs[static_cast<std::size_t>(i)].set(&surface_, options.w_shape);
@@ -151,6 +179,7 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
 // Indices in range, values finite, counts within the pools.
 bool BundleAdjuster::valid(const BaJob& job) const {
   if (job.point_count > max_points_ || job.observation_count > max_observations_ || job.keyframe_count < 1 ||
+      job.keyframe_count > kMaxKeyframes ||
       job.point_count < 1)
     return false;
   for (int i = 0; i < job.keyframe_count; ++i)
@@ -173,6 +202,7 @@ int BundleAdjuster::build(BaJob* job) {
   int fixed = 0, oldest = 0;
   for (int i = 0; i < job->keyframe_count; ++i) {
     BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
+    impl_->pose_caches[static_cast<std::size_t>(i)].reset();
     problem.AddParameterBlock(k.pose, kPoseParams, &impl_->manifold);
     if (k.fixed) {
       problem.SetParameterBlockConstant(k.pose);
@@ -194,7 +224,8 @@ int BundleAdjuster::build(BaJob* job) {
     const Vec3 p_camera = pose_from_params(k.pose) * job->point(o.point);
     if (!(p_camera.z() > options_.min_depth_mm)) continue;  // Ceres needs a valid start
     ReprojectionCost& c = impl_->reprojection_costs[static_cast<std::size_t>(used++)];
-    c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm);
+    c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm,
+          &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)]);
     problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), k.pose, p.p_model);
     point_observed_[static_cast<std::size_t>(o.point)] = 1;
   }
