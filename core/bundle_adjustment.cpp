@@ -135,7 +135,8 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   configured_ = false;
   if (!(options.w_shape >= 0) || !std::isfinite(options.w_shape) || !(options.shape_huber_mm > 0) ||
       !(options.reprojection_huber > 0) || options.max_iterations < 1 || !(options.max_time_s > 0) ||
-      !(options.min_depth_mm > 0) || !(options.max_point_shift_mm > 0) || options.surface_distance_samples < 0)
+      !(options.min_depth_mm > 0) || !(options.max_point_shift_mm > 0) || options.surface_distance_samples < 0 ||
+      options.max_observations_per_point < 0 || options.max_observations_per_point > kMaxObservationsPerPointCap)
     return make_error("bundle adjustment: options out of range (w_shape >= 0, thresholds and limits > 0)");
   if (!pinhole_is_usable(K)) return make_error("bundle adjustment: the pinhole is not usable");
   if (max_points < 1 || max_points > kMaxMapPoints || max_observations < 1)
@@ -160,6 +161,7 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   max_points_ = max_points;
   max_observations_ = max_observations;
   point_observed_.assign(static_cast<std::size_t>(max_points), 0);
+  newest_frames_.assign(static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_observations_per_point)), -1);
   ceres::Problem::Options& po = impl_->problem_options;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -217,10 +219,16 @@ int BundleAdjuster::build(BaJob* job) {
   }
   job->summary.fixed_keyframes = fixed;
   for (int i = 0; i < job->point_count; ++i) point_observed_[static_cast<std::size_t>(i)] = 0;
+  const int cap = options_.max_observations_per_point;
+  if (cap > 0) newest_frames_per_point(*job);
   int used = 0;
   for (int i = 0; i < job->observation_count; ++i) {
     const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
     BaKeyframe& k = job->keyframes[static_cast<std::size_t>(o.keyframe)];
+    // Keyframe frames are distinct: at most cap observations pass.
+    if (cap > 0 && k.frame < newest_frames_[static_cast<std::size_t>(o.point) * static_cast<std::size_t>(cap) +
+                                            static_cast<std::size_t>(cap - 1)])
+      continue;
     BaPoint& p = job->points[static_cast<std::size_t>(o.point)];
     const Vec3 p_camera = pose_from_params(k.pose) * job->point(o.point);
     if (!(p_camera.z() > options_.min_depth_mm)) continue;  // Ceres needs a valid start
@@ -232,6 +240,20 @@ int BundleAdjuster::build(BaJob* job) {
   }
   if (options_.w_shape > 0) add_shape_residuals(job);
   return used;
+}
+
+// Per point, the frames of its cap newest observing keyframes (descending,
+// -1 padded) by insertion into a fixed row: allocates nothing.
+void BundleAdjuster::newest_frames_per_point(const BaJob& job) {
+  const auto cap = static_cast<std::size_t>(options_.max_observations_per_point);
+  std::fill(newest_frames_.begin(), newest_frames_.begin() + static_cast<std::ptrdiff_t>(job.point_count * cap), -1);
+  for (int i = 0; i < job.observation_count; ++i) {
+    const BaObservation& o = job.observations[static_cast<std::size_t>(i)];
+    std::int32_t frame = job.keyframes[static_cast<std::size_t>(o.keyframe)].frame;
+    std::int32_t* row = &newest_frames_[static_cast<std::size_t>(o.point) * cap];
+    for (std::size_t j = 0; j < cap; ++j)
+      if (frame > row[j]) std::swap(frame, row[j]);
+  }
 }
 
 void BundleAdjuster::add_shape_residuals(BaJob* job) {
