@@ -61,9 +61,21 @@ Mat67 se3_minus_jacobian(const double* x) {
   return M;
 }
 
+void pose_linearization(const double* x, PoseLinearization* out) {
+  out->T_camera_model = pose_from_params(x);
+  out->minus_jacobian = se3_minus_jacobian(x);
+}
+
 bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info, double min_depth_mm,
                        const double* x, const double* f, double* r, double* J_pose, double* J_point) {
-  const SE3 T = pose_from_params(x);
+  PoseLinearization pose;
+  pose_linearization(x, &pose);
+  return reprojection_cost(K, px_ideal, sqrt_info, min_depth_mm, pose, f, r, J_pose, J_point);
+}
+
+bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info, double min_depth_mm,
+                       const PoseLinearization& pose, const double* f, double* r, double* J_pose, double* J_point) {
+  const SE3& T = pose.T_camera_model;
   const Vec3 p_model(f[0], f[1], f[2]);
   Vec2 e;
   Mat26 J;
@@ -73,13 +85,13 @@ bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info,
   r[1] = sqrt_info * e[1];
   if (J_pose) {
     Eigen::Map<Eigen::Matrix<double, 2, 7, Eigen::RowMajor>> Jp(J_pose);
-    Jp = sqrt_info * J * se3_minus_jacobian(x);
+    Jp.noalias() = (sqrt_info * J) * pose.minus_jacobian;
   }
   if (J_point) {
     // d r / d f = d project / d p_camera * R; the v columns of the left
     // Jacobian are exactly d project / d p_camera.
     Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> Jf(J_point);
-    Jf = sqrt_info * J.rightCols<3>() * T.rotation();
+    Jf.noalias() = (sqrt_info * J.rightCols<3>()) * T.rotation();
   }
   return true;
 }

@@ -52,11 +52,23 @@ bool se3_minus(const double* y, const double* x, double* y_minus_x);
 Mat76 se3_plus_jacobian(const double* x);   // d plus / d delta at delta = 0
 Mat67 se3_minus_jacobian(const double* x);  // a left inverse of se3_plus_jacobian
 
+// What every residual of one pose block needs from its 7 parameters: the
+// pose and se3_minus_jacobian. BA computes it once per pose and evaluation
+// (core/bundle_adjustment.cpp) instead of once per residual.
+struct PoseLinearization {
+  SE3 T_camera_model;
+  Mat67 minus_jacobian = Mat67::Zero();
+};
+void pose_linearization(const double* x, PoseLinearization* out);
+
 // Whitened reprojection residual r (2) of point f (3) in pose x (7), with
 // the ambient Jacobians J_pose (2 x 7, row-major) and J_point (2 x 3), each
 // optional. False when the point is not in front (depth <= min_depth_mm).
 bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info, double min_depth_mm,
                        const double* x, const double* f, double* r, double* J_pose, double* J_point);
+// The same with the pose block's linearization already computed.
+bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info, double min_depth_mm,
+                       const PoseLinearization& pose, const double* f, double* r, double* J_pose, double* J_point);
 
 // Shape residual r (3) = sqrt_w (f - D(f)) and J (3 x 3, row-major, optional).
 // False when the index cannot answer (not configured, non-finite f).

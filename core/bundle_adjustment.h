@@ -38,7 +38,15 @@ struct BundleAdjusterOptions {
   double min_depth_mm = 1.0;        // observations at a smaller depth are left out
   double max_point_shift_mm = 10.0; // a point moved farther is marked rejected (the
                                     // tracker keeps its old position)
+  int max_observations_per_point = 0;  // 0: all; else only the newest (keyframe frame)
+                                       // this many per point, <= kMaxObservationsPerPointCap:
+                                       // bounds the Schur work per point (quadratic in it)
+  int surface_distance_samples = 128;  // summary.mean_surface_distance_mm over at most this
+                                       // many evenly spaced points (0: all); one exact
+                                       // closest-point query each (~1.6 us)
 };
+
+inline constexpr int kMaxObservationsPerPointCap = 16;
 
 class BundleAdjuster {
  public:
@@ -59,13 +67,15 @@ class BundleAdjuster {
 
   const ClosestPointIndex& surface() const { return surface_; }
   const BundleAdjusterOptions& options() const { return options_; }
-  // Mean distance of the job's points to the mesh (mm); -1 for no points.
-  double mean_surface_distance(const BaJob& job) const;
+  // Mean distance of the job's points to the mesh (mm) over at most
+  // max_samples evenly spaced points (0: all); -1 for no points.
+  double mean_surface_distance(const BaJob& job, int max_samples = 0) const;
 
  private:
   struct Impl;  // the Ceres objects (kept out of this header: glog macros)
   bool valid(const BaJob& job) const;
   int build(BaJob* job);
+  void newest_frames_per_point(const BaJob& job);
   void add_shape_residuals(BaJob* job);
   void finish(BaJob* job, double initial_cost, double final_cost, double total_s, int iterations, bool usable);
 
@@ -73,8 +83,9 @@ class BundleAdjuster {
   Pinhole K_;
   ClosestPointIndex surface_;
   std::unique_ptr<Impl> impl_;
-  std::vector<std::uint8_t> point_observed_;
-  std::vector<ShapePlane> planes_;  // per job point: tangent plane at the start value  // per job point: has a reprojection residual
+  std::vector<std::uint8_t> point_observed_;  // per job point: has a reprojection residual
+  std::vector<std::int32_t> newest_frames_;   // per job point: max_observations_per_point newest frames, descending
+  std::vector<ShapePlane> planes_;            // per job point: tangent plane at the start value
   int max_points_ = 0, max_observations_ = 0;
   bool configured_ = false;
 };

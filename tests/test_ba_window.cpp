@@ -4,6 +4,7 @@
 // allocation count of a solve, bad jobs refused.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/bundle_adjustment.h"
@@ -145,4 +146,38 @@ TEST_CASE("ba window: invalid jobs are refused without touching Ceres") {
   bad.w_shape = -1;
   CHECK_FALSE(ba.configure(bad, mesh, K, 2, 2).ok());
   CHECK_FALSE(job.configure(0, 1, 1).ok());
+}
+
+TEST_CASE("ba window: observations capped to the newest k per point still bring the window back") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BaWindowSpec spec;
+  spec.points = 400;
+  BaWindow w = make_ba_window(mesh, K, spec);
+  constexpr int kCap = 4;
+  BundleAdjusterOptions o = options(100.0);
+  o.max_observations_per_point = kCap;
+  BundleAdjuster ba;
+  REQUIRE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+  // The newest kCap keyframes (by frame) of each point: the kept count follows.
+  int expected = 0;
+  for (int p = 0; p < w.job.point_count; ++p) {
+    int n = 0;
+    for (int i = 0; i < w.job.observation_count; ++i) n += w.job.observations[static_cast<std::size_t>(i)].point == p;
+    expected += std::min(n, kCap);
+  }
+  const Errors start = errors(w, ba);
+  REQUIRE(ba.solve(&w.job));
+  const Errors end = errors(w, ba);
+  MESSAGE("<= " << kCap << " obs/point: " << w.job.summary.observations << " of " << w.job.observation_count
+                << " observations; rotation " << start.rot_deg << " -> " << end.rot_deg << " deg, points "
+                << start.point_mm << " -> " << end.point_mm << " mm");
+  CHECK(w.job.summary.observations == expected);  // all in front in the simulated window
+  CHECK(w.job.summary.observations < w.job.observation_count);
+  CHECK(end.rot_deg < 0.5 * start.rot_deg);
+  CHECK(end.point_mm < 0.5 * start.point_mm);
+  for (const int bad : {-1, kMaxObservationsPerPointCap + 1}) {
+    o.max_observations_per_point = bad;
+    CHECK_FALSE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+  }
 }
