@@ -32,7 +32,7 @@ struct Target {
   std::uint8_t* mask = nullptr;
   int width = 0, height = 0;
   std::ptrdiff_t stride = 0;
-  bool use_simd = true;  // false: the portable span kernel (tests compare both)
+  bool use_simd = true;  // false: the portable span and box kernels (tests compare both)
   // Per row, the columns written so far [dirty_x0, dirty_x1] (height
   // entries each): the next render clears only those.
   std::int32_t* dirty_x0 = nullptr;

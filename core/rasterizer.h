@@ -31,7 +31,8 @@ struct RasterConfig {
   int downscale = 1;           // 1, 2 or 4: the raster is width/downscale x height/downscale
   double near_mm = 1.0;        // near clipping plane, mm along the optical axis
   bool cull_backfaces = true;  // closed organ: back faces are never visible
-  bool use_simd = true;        // false forces the portable span kernel (tests, bench)
+  bool use_simd = true;        // false forces the portable forms of both kernels (the scanline
+                               // span and the small-triangle box) and of the resolve pass
 };
 
 // What the last render() did (for tests, the bench and diagnostics).
@@ -55,7 +56,7 @@ class MeshRasterizer {
   // Only K_full's intrinsics are used; the raster size comes from configure().
   void render(const SE3& T_camera_model, const Pinhole& K_full);
   const RasterStats& stats() const { return stats_; }
-  // True if this build runs the SIMD span kernel (config.use_simd permitting).
+  // True if this build runs the SIMD kernels (config.use_simd permitting).
   static bool simd_available();
 
   const RasterConfig& config() const { return config_; }
