@@ -7,18 +7,16 @@
 // note; the closest-point query D(f) for points within 2 mm of the surface.
 #include <algorithm>
 #include <cstdio>
-#include <fstream>
 #include <random>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "bench.h"
+#include "bench_liver.h"
 #include "core/bundle_adjustment.h"
 #include "core/closest_point.h"
 #include "platform/alloc_counter.h"
 #include "tests/support/ba_window.h"
-#include "tests/support/test_ply.h"
 
 namespace st::bench {
 namespace {
@@ -96,13 +94,9 @@ Row bench_closest(const Options& opt, const Mesh& liver) {
 }
 
 int run(const Options& opt) {
-  const std::string path = opt.shared_dir + "/data/liver/liver.ply";
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  auto mesh = test::read_binary_ply_for_tests(ss.str());
+  auto mesh = load_bench_liver(opt);
   if (!mesh.ok()) {
-    std::fprintf(stderr, "ba: cannot load %s: %s\n", path.c_str(), mesh.message().c_str());
+    std::fprintf(stderr, "ba: %s\n", mesh.message().c_str());
     return 1;
   }
   report(opt, bench_window(opt, mesh.value(), 100.0, 1000));

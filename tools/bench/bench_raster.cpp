@@ -4,41 +4,33 @@
 // no depth, no ids), timed in the same run.
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <opencv2/imgproc.hpp>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "bench.h"
+#include "bench_liver.h"
 #include "core/image.h"
 #include "core/rasterizer.h"
 #include "tests/support/raster_scene.h"
-#include "tests/support/test_ply.h"
 
 namespace st::bench {
 namespace {
 
 constexpr double kTargetCoverage = 0.6;  // "filling most of the view"
 
-// Closest distance along a fixed oblique view at which the organ covers the
-// target fraction of the image (setup, untimed).
+// The bench view (bench_liver.h) and the share of the image the organ
+// covers there (setup, untimed).
 SE3 bench_pose(const Mesh& liver, double* coverage) {
+  const SE3 T = liver_view_filling(liver, kTargetCoverage);
   MeshRasterizer r;
   RasterConfig cfg;
   cfg.width = 1280;
   cfg.height = 720;
   cfg.downscale = 4;
-  if (!r.configure(liver, cfg).ok()) return SE3();
-  const Vec3 centre = test::bbox_centre(liver);
-  const Vec3 view_dir(0.25, -0.35, 1.0);
-  SE3 T;
-  for (double d = 900.0; d > 100.0; d *= 0.98) {
-    T = test::look_at(centre, view_dir, d, 0.3);
-    r.render(T, test::bench_pinhole());
-    *coverage = double(r.covered_pixels()) / (320.0 * 180.0);
-    if (*coverage >= kTargetCoverage) break;
-  }
+  if (!r.configure(liver, cfg).ok()) return T;
+  r.render(T, test::bench_pinhole());
+  *coverage = double(r.covered_pixels()) / (320.0 * 180.0);
   return T;
 }
 
@@ -135,13 +127,9 @@ void report_helpers(const Options& opt, const Mesh& liver, const SE3& T, int n) 
 }
 
 int run(const Options& opt) {
-  const std::string path = opt.shared_dir + "/data/liver/liver.ply";
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  auto mesh = test::read_binary_ply_for_tests(ss.str());
+  auto mesh = load_bench_liver(opt);
   if (!mesh.ok()) {
-    std::fprintf(stderr, "raster: cannot load %s: %s\n", path.c_str(), mesh.message().c_str());
+    std::fprintf(stderr, "raster: %s\n", mesh.message().c_str());
     return 1;
   }
   const Mesh& liver = mesh.value();
