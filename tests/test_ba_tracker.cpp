@@ -24,25 +24,10 @@ using namespace st::test;
 
 namespace {
 
-struct Rendered {
-  Mesh mesh;
-  Pinhole K;
-  std::vector<SE3> poses;
-  std::vector<Image<std::uint8_t>> frames;
-};
+using Rendered = RenderedOrbit;
 
 const Rendered& orbit40() {
-  static const Rendered r = [] {
-    Rendered s;
-    s.mesh = load_liver_for_tracking();
-    s.K = track_test_pinhole();
-    s.poses = liver_orbit(s.mesh, 40);
-    TrackSceneRenderer renderer;
-    renderer.configure(s.mesh, s.K);
-    s.frames.resize(s.poses.size());
-    for (std::size_t i = 0; i < s.poses.size(); ++i) renderer.render(s.poses[i], &s.frames[i]);
-    return s;
-  }();
+  static const Rendered r = render_liver_orbit(40);
   return r;
 }
 
@@ -95,7 +80,7 @@ struct RunResult {
 RunResult run_orbit(const TrackerConfig& cfg, BaChannel* channel) {
   const Rendered& s = orbit40();
   Tracker t;
-  REQUIRE(t.configure(cfg, s.mesh, CameraModel(s.K, Distortion{}), s.poses[0]).ok());
+  REQUIRE(t.configure(cfg, s.mesh, CameraModel(s.K, Distortion{}), s.T_camera_model[0]).ok());
   t.set_ba_channel(channel);
   t.start();
   RunResult out;
@@ -105,10 +90,10 @@ RunResult run_orbit(const TrackerConfig& cfg, BaChannel* channel) {
     out.applied += r.ba_applied ? 1 : 0;
     if (!r.pose_valid) continue;
     ++out.posed;
-    const PoseDelta d = pose_delta(r.T_camera_model, s.poses[static_cast<std::size_t>(i)]);
+    const PoseDelta d = pose_delta(r.T_camera_model, s.T_camera_model[static_cast<std::size_t>(i)]);
     out.max_rot_deg = std::max(out.max_rot_deg, d.angle_deg);
     out.max_centre_mm = std::max(out.max_centre_mm, (r.T_camera_model.inverse().translation() -
-                                                     s.poses[static_cast<std::size_t>(i)].inverse().translation())
+                                                     s.T_camera_model[static_cast<std::size_t>(i)].inverse().translation())
                                                         .norm());
   }
   std::vector<Vec3> points(static_cast<std::size_t>(cfg.max_map_points));
@@ -131,7 +116,7 @@ TEST_CASE("ba tracker: the tracking thread allocates nothing while the mapping t
   Image<std::uint8_t> black(s.K.width, s.K.height);
   const TrackerConfig cfg = small_config(s.K);
   Tracker t;
-  REQUIRE(t.configure(cfg, s.mesh, CameraModel(s.K, Distortion{}), s.poses[0]).ok());
+  REQUIRE(t.configure(cfg, s.mesh, CameraModel(s.K, Distortion{}), s.T_camera_model[0]).ok());
   app::MappingWorker worker;
   REQUIRE(worker.configure(cfg, s.mesh, s.K).ok());
   t.set_ba_channel(&worker);
@@ -140,8 +125,8 @@ TEST_CASE("ba tracker: the tracking thread allocates nothing while the mapping t
   int posed = 0, submitted = 0, applied = 0, relocalised = 0;
   const AllocationCounter counter;
   for (int step = 0; step < 220; ++step) {
-    const int period = 2 * (static_cast<int>(s.poses.size()) - 1);
-    const int k = step % period, i = k < static_cast<int>(s.poses.size()) ? k : period - k;
+    const int period = 2 * (static_cast<int>(s.T_camera_model.size()) - 1);
+    const int k = step % period, i = k < static_cast<int>(s.T_camera_model.size()) ? k : period - k;
     const bool dark = step >= 100 && step < 105;  // lost, then relocalised: a global BA
     const TrackResult r = t.step(dark ? black.view() : s.frames[static_cast<std::size_t>(i)].view(), step);
     posed += r.pose_valid ? 1 : 0;
@@ -208,6 +193,6 @@ TEST_CASE("ba tracker: use_ba false hands out no job; bad BA settings are refuse
                           +[](TrackerConfig* c) { c->ba_max_time_s = 0; }, +[](TrackerConfig* c) { c->ba_max_observations = 0; }}) {
     TrackerConfig c = small_config(s.K);
     bad(&c);
-    CHECK_FALSE(t.configure(c, s.mesh, CameraModel(s.K, Distortion{}), s.poses[0]).ok());
+    CHECK_FALSE(t.configure(c, s.mesh, CameraModel(s.K, Distortion{}), s.T_camera_model[0]).ok());
   }
 }

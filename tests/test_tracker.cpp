@@ -21,26 +21,11 @@ using namespace st::test;
 
 namespace {
 
-struct Sequence {
-  Mesh mesh;
-  Pinhole K;
-  std::vector<SE3> T_camera_model;
-  std::vector<Image<std::uint8_t>> frames;
-};
+using Sequence = RenderedOrbit;
 
 // Rendered once per test binary run (a few seconds), shared by the tests.
 const Sequence& orbit_sequence() {
-  static const Sequence seq = [] {
-    Sequence s;
-    s.mesh = load_liver_for_tracking();
-    s.K = track_test_pinhole();
-    s.T_camera_model = liver_orbit(s.mesh, 90);
-    TrackSceneRenderer renderer;
-    renderer.configure(s.mesh, s.K);
-    s.frames.resize(s.T_camera_model.size());
-    for (std::size_t i = 0; i < s.frames.size(); ++i) renderer.render(s.T_camera_model[i], &s.frames[i]);
-    return s;
-  }();
+  static const Sequence seq = render_liver_orbit(90);
   return seq;
 }
 

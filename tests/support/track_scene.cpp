@@ -108,4 +108,16 @@ std::vector<SE3> liver_orbit(const Mesh& mesh, int frames) {
   return poses;
 }
 
+RenderedOrbit render_liver_orbit(int frames) {
+  RenderedOrbit s;
+  s.mesh = load_liver_for_tracking();
+  s.K = track_test_pinhole();
+  s.T_camera_model = liver_orbit(s.mesh, frames);
+  TrackSceneRenderer renderer;
+  renderer.configure(s.mesh, s.K);
+  s.frames.resize(s.T_camera_model.size());
+  for (std::size_t i = 0; i < s.frames.size(); ++i) renderer.render(s.T_camera_model[i], &s.frames[i]);
+  return s;
+}
+
 }  // namespace st::test

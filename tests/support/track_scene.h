@@ -41,4 +41,14 @@ std::vector<SE3> liver_orbit(const Mesh& mesh, int frames);
 // Pinhole of the test frames: 640x360, fx = fy = 500.
 inline Pinhole track_test_pinhole() { return {500.0, 500.0, 319.5, 179.5, 640, 360}; }
 
+// The liver seen along liver_orbit(frames), rendered with TrackSceneRenderer
+// at track_test_pinhole(): the ground truth and the luma frames.
+struct RenderedOrbit {
+  Mesh mesh;
+  Pinhole K;
+  std::vector<SE3> T_camera_model;
+  std::vector<Image<std::uint8_t>> frames;
+};
+RenderedOrbit render_liver_orbit(int frames);
+
 }  // namespace st::test
