@@ -41,9 +41,17 @@ void ImageMotion::shrink(GrayView luma, GrayView valid, float* image, std::uint8
         out[sx] += static_cast<float>(s);
       }
     }
+    // The valid mask may be coarser than the frame (ValidMaskBuilder works
+    // at 1/downscale): sample it at the block centre in its own pixels.
     for (int sx = 0; sx < w_; ++sx) {
+      if (valid.empty()) {
+        mask[at(sx, sy)] = 1;
+        continue;
+      }
       const int cx = sx * kShrink + kShrink / 2, cy = sy * kShrink + kShrink / 2;
-      mask[at(sx, sy)] = valid.empty() || valid(cx, cy) != 0 ? 1 : 0;
+      const int vx = std::min(cx * valid.width / luma.width, valid.width - 1);
+      const int vy = std::min(cy * valid.height / luma.height, valid.height - 1);
+      mask[at(sx, sy)] = valid(vx, vy) != 0 ? 1 : 0;
     }
   }
   for (int sy = 0; sy < h_; ++sy)

@@ -34,7 +34,9 @@ class ImageMotion {
   // the image motion previous -> current (level-0 pixels: a scene point at
   // x in the previous frame is at x + shift now) starting the search at
   // guess_px, and returns true if the alignment converged on enough valid
-  // pixels. valid may be empty (every pixel valid).
+  // pixels. valid may be empty (every pixel valid) or coarser than luma
+  // (the ValidMaskBuilder mask at 1/downscale): it is sampled in its own
+  // pixels.
   bool update(GrayView luma, GrayView valid, const Vec2& guess_px, Vec2* shift_px);
 
  private:

@@ -73,3 +73,19 @@ TEST_CASE("image_motion: a featureless frame gives no estimate") {
   CHECK_FALSE(m.update(view_of(flat), GrayView{}, Vec2(0, 0), &shift));
   CHECK_FALSE(m.configure(100, 100).ok());
 }
+
+TEST_CASE("image_motion: a valid mask at half resolution (the tracker's) is sampled in its own pixels") {
+  const cv::Mat full = real_luma();
+  ImageMotion m;
+  REQUIRE(m.configure(1280, 720).ok());
+  // Half-resolution valid mask with the left quarter invalid: it must be
+  // read inside its own 640x360 buffer (ASan catches a full-resolution
+  // read) and still give the shift from the valid part.
+  cv::Mat valid(360, 640, CV_8U, cv::Scalar(255));
+  valid(cv::Rect(0, 0, 160, 360)).setTo(0);
+  Vec2 shift(0, 0);
+  CHECK_FALSE(m.update(view_of(window(full, 300, 180, 0, 0)), view_of(valid), Vec2(0, 0), &shift));
+  REQUIRE(m.update(view_of(window(full, 300, 180, -25, 14)), view_of(valid), Vec2(0, 0), &shift));
+  CHECK(std::abs(shift.x() + 25) < 2.0);
+  CHECK(std::abs(shift.y() - 14) < 2.0);
+}
