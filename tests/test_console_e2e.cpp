@@ -247,7 +247,16 @@ TEST_CASE(
   // 100 poses fit in the console's buffer: drops under a real backlog are
   // proven in test_console_sink.cpp (40,000 poses); here: no effect on tracking.
   CHECK(p99_slow <= std::max(1.5 * p99_none, p99_none + 3.0));  // noise of a shared machine
-  CHECK(rss_slow - rss_none < 16.0);
+  // Memory stays flat. Under AddressSanitizer peak RSS also holds its
+  // quarantine of freed blocks and shadow memory, which vary by tens of MB
+  // between identical runs: there the bound is wider (the Release build
+  // keeps 16 MB).
+#if defined(__SANITIZE_ADDRESS__)
+  constexpr double kRssMarginMb = 64.0;
+#else
+  constexpr double kRssMarginMb = 16.0;
+#endif
+  CHECK(rss_slow - rss_none < kRssMarginMb);
 }
 
 TEST_CASE(
