@@ -165,12 +165,7 @@ void wait_for_stop(const sigset_t& signals, const LiveStatus& status, bool print
 int finish_run(const CameraArgs& args, const SequenceConfig& cal, std::int64_t t0_ns, const LibcameraCapture& capture,
                const TrackerProcessor& processor, RunWriter* writer, LiveLoop* loop) {
   ReplayStats& stats = loop->stats;
-  stats.wall_s = static_cast<double>(platform::monotonic_ns() - t0_ns) * 1e-9;
-  stats.fps = stats.wall_s > 0 ? stats.frames / stats.wall_s : 0.0;
-  stats.mean_latency_ms = loop->latency.mean_ms();
-  stats.p99_latency_ms = loop->latency.quantile_ms(0.99);
-  stats.max_latency_ms = loop->latency.max_ms();
-  stats.peak_rss_mb = platform::peak_rss_mb();
+  fill_timing(loop->latency, static_cast<double>(platform::monotonic_ns() - t0_ns) * 1e-9, &stats);
   stats.tracking_thread_allocations = static_cast<std::int64_t>(loop->allocations);
   if (loop->pixel_error != PixelStatus::kOk) stats.error = std::string("camera buffer: ") + describe(loop->pixel_error);
   const CaptureCounters counters = capture.counters();

@@ -101,16 +101,16 @@ struct TrackingLoop {
   }
 };
 
-void fill_timing(const TrackingLoop& loop, double wall_s, ReplayStats* s) {
+}  // namespace
+
+void fill_timing(const LatencyHistogram& latency, double wall_s, ReplayStats* s) {
   s->wall_s = wall_s;
   s->fps = wall_s > 0 ? s->frames / wall_s : 0.0;
-  s->mean_latency_ms = loop.latency.mean_ms();
-  s->p99_latency_ms = loop.latency.quantile_ms(0.99);
-  s->max_latency_ms = loop.latency.max_ms();
+  s->mean_latency_ms = latency.mean_ms();
+  s->p99_latency_ms = latency.quantile_ms(0.99);
+  s->max_latency_ms = latency.max_ms();
   s->peak_rss_mb = platform::peak_rss_mb();
 }
-
-}  // namespace
 
 int estimate_frame_count(const LoadedSequence& sequence) {
   if (sequence.video_is_pipe) return 0;
@@ -185,7 +185,7 @@ Result<ReplayStats> run_replay(const LoadedSequence& sequence, FrameProcessor& p
   stats.tracking_thread_allocations = static_cast<std::int64_t>(allocs);
   if (loop->read_error) stats.error = capture->error();
   if (Status s = writer->finish(); !s && stats.error.empty()) stats.error = s.message();
-  fill_timing(*loop, wall_s, &stats);
+  fill_timing(loop->latency, wall_s, &stats);
   if (Status s = write_file(options.out_dir / "summary.json", format_replay_summary(stats, summary_options)); !s)
     return Error{s.message()};
   return stats;

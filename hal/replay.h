@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "core/image.h"
+#include "core/latency_histogram.h"
 #include "core/result.h"
 #include "core/tracker.h"
 #include "hal/run_writer.h"
@@ -94,6 +95,10 @@ FrameState frame_state(TrackState s);
 // replay and the live camera loop; allocates nothing.
 FrameRow record_frame(int frame, double timestamp_s, const TrackResult& r, double latency_ms,
                       ReplayStats* stats);
+
+// After a run: wall time, fps, latency mean/p99/max from the histogram and
+// the process's peak RSS into stats (frames already counted).
+void fill_timing(const LatencyHistogram& latency, double wall_s, ReplayStats* stats);
 
 // Frames in a Y4M file estimated from its size (0 for a pipe or unknown).
 int estimate_frame_count(const LoadedSequence& sequence);
