@@ -137,14 +137,16 @@ int run(const Options& opt) {
   double coverage = 0, base_coverage = 0;
   const SE3 T = bench_pose(liver, &coverage);
   RasterStats stats;
-  // "raster only DS": just our render at 1/DS (for profilers), no baseline.
-  if (opt.args.size() == 2 && opt.args[0] == "only") {
-    const int ds = std::atoi(opt.args[1].c_str());
+  const auto report_downscaled = [&](int ds) {
     Row r;
     r.name = "raster 1/" + std::to_string(ds) + " mask+depth+id";
     r.samples_ms = time_ours(liver, T, ds, true, n, &stats, &coverage);
     r.note = describe(stats, coverage);
     report(opt, r);
+  };
+  // "raster only DS": just our render at 1/DS (for profilers), no baseline.
+  if (opt.args.size() == 2 && opt.args[0] == "only") {
+    report_downscaled(std::atoi(opt.args[1].c_str()));
     return 0;
   }
   Row row;
@@ -161,13 +163,7 @@ int run(const Options& opt) {
   portable.samples_ms = time_ours(liver, T, 1, false, n, &stats, &coverage);
   report(opt, portable);
   report_helpers(opt, liver, T, n);
-  for (int ds : {2, 4}) {
-    Row r;
-    r.name = "raster 1/" + std::to_string(ds) + " mask+depth+id";
-    r.samples_ms = time_ours(liver, T, ds, true, n, &stats, &coverage);
-    r.note = describe(stats, coverage);
-    report(opt, r);
-  }
+  for (int ds : {2, 4}) report_downscaled(ds);
   return 0;
 }
 
