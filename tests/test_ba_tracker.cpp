@@ -24,10 +24,8 @@ using namespace st::test;
 
 namespace {
 
-using Rendered = RenderedOrbit;
-
-const Rendered& orbit40() {
-  static const Rendered r = render_liver_orbit(40);
+const RenderedOrbit& orbit40() {
+  static const RenderedOrbit r = render_liver_orbit(40);
   return r;
 }
 
@@ -78,7 +76,7 @@ struct RunResult {
 };
 
 RunResult run_orbit(const TrackerConfig& cfg, BaChannel* channel) {
-  const Rendered& s = orbit40();
+  const RenderedOrbit& s = orbit40();
   Tracker t;
   REQUIRE(t.configure(cfg, s.mesh, CameraModel(s.K, Distortion{}), s.T_camera_model[0]).ok());
   t.set_ba_channel(channel);
@@ -112,7 +110,7 @@ RunResult run_orbit(const TrackerConfig& cfg, BaChannel* channel) {
 
 TEST_CASE("ba tracker: the tracking thread allocates nothing while the mapping thread runs BA") {
   REQUIRE(platform::allocation_counting_enabled());
-  const Rendered& s = orbit40();
+  const RenderedOrbit& s = orbit40();
   Image<std::uint8_t> black(s.K.width, s.K.height);
   const TrackerConfig cfg = small_config(s.K);
   Tracker t;
@@ -153,7 +151,7 @@ TEST_CASE("ba tracker: the tracking thread allocates nothing while the mapping t
 }
 
 TEST_CASE("ba tracker: BA keeps tracking accurate and map points on the mesh (synchronous channel)") {
-  const Rendered& s = orbit40();
+  const RenderedOrbit& s = orbit40();
   TrackerConfig cfg = small_config(s.K);
   const RunResult none = run_orbit(cfg, nullptr);
   InlineChannel shape;
@@ -180,7 +178,7 @@ TEST_CASE("ba tracker: BA keeps tracking accurate and map points on the mesh (sy
 }
 
 TEST_CASE("ba tracker: use_ba false hands out no job; bad BA settings are refused") {
-  const Rendered& s = orbit40();
+  const RenderedOrbit& s = orbit40();
   TrackerConfig cfg = small_config(s.K);
   cfg.use_ba = false;
   InlineChannel channel;

@@ -21,11 +21,9 @@ using namespace st::test;
 
 namespace {
 
-using Sequence = RenderedOrbit;
-
 // Rendered once per test binary run (a few seconds), shared by the tests.
-const Sequence& orbit_sequence() {
-  static const Sequence seq = render_liver_orbit(90);
+const RenderedOrbit& orbit_sequence() {
+  static const RenderedOrbit seq = render_liver_orbit(90);
   return seq;
 }
 
@@ -47,7 +45,7 @@ std::int64_t steady_ns() {
 }  // namespace
 
 TEST_CASE("tracker: configure rejects bad configs with clear errors") {
-  const Sequence& seq = orbit_sequence();
+  const RenderedOrbit& seq = orbit_sequence();
   const CameraModel cam(seq.K, Distortion{});
   Tracker t;
   TrackerConfig good = test_config(seq.K);
@@ -93,7 +91,7 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
 }
 
 TEST_CASE("tracker: initialisation from one frame puts map points on the mesh") {
-  const Sequence& seq = orbit_sequence();
+  const RenderedOrbit& seq = orbit_sequence();
   Tracker t;
   REQUIRE(t.configure(test_config(seq.K), seq.mesh, CameraModel(seq.K, Distortion{}), seq.T_camera_model[0]).ok());
   t.start();
@@ -127,7 +125,7 @@ TEST_CASE("tracker: initialisation from one frame puts map points on the mesh") 
 }
 
 TEST_CASE("tracker: a capped local map stays within its cap and still tracks the orbit") {
-  const Sequence& seq = orbit_sequence();
+  const RenderedOrbit& seq = orbit_sequence();
   TrackerConfig cfg = test_config(seq.K);
   cfg.local_map_per_cell = 3;
   Tracker t;
@@ -152,7 +150,7 @@ TEST_CASE("tracker: a capped local map stays within its cap and still tracks the
 }
 
 TEST_CASE("tracker: tracks a rendered orbit around the liver without losing it") {
-  const Sequence& seq = orbit_sequence();
+  const RenderedOrbit& seq = orbit_sequence();
   TrackerConfig cfg = test_config(seq.K);
   cfg.now_ns = &steady_ns;
   Tracker t;
@@ -193,7 +191,7 @@ TEST_CASE("tracker: tracks a rendered orbit around the liver without losing it")
 }
 
 TEST_CASE("tracker: black and noise frames are lost, then it relocalises on the organ") {
-  const Sequence& seq = orbit_sequence();
+  const RenderedOrbit& seq = orbit_sequence();
   Tracker t;
   REQUIRE(t.configure(test_config(seq.K), seq.mesh, CameraModel(seq.K, Distortion{}), seq.T_camera_model[0]).ok());
   t.start();
