@@ -5,11 +5,27 @@
 #include <cmath>
 #include <cstring>
 
+#include <opencv2/core/hal/intrin.hpp>
+
 #include "core/capacity.h"
 
 namespace st {
 
+// 256-bit Hamming distance. The portable build targets baseline x86-64,
+// where std::popcount is a libgcc call per word; the universal-intrinsics
+// path counts bits per byte in two 16-byte registers and sums them with
+// one horizontal add (psadbw on SSE2, cnt + addv on NEON).
 int hamming256(const std::uint8_t* a, const std::uint8_t* b) {
+#if CV_SIMD128
+  const cv::v_uint8x16 x0 = cv::v_load(a) ^ cv::v_load(b);
+  const cv::v_uint8x16 x1 = cv::v_load(a + 16) ^ cv::v_load(b + 16);
+  return static_cast<int>(cv::v_reduce_sum(cv::v_popcount(x0) + cv::v_popcount(x1)));
+#else
+  return hamming256_portable(a, b);
+#endif
+}
+
+int hamming256_portable(const std::uint8_t* a, const std::uint8_t* b) {
   int d = 0;
   for (int i = 0; i < 4; ++i) {
     std::uint64_t x, y;

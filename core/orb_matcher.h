@@ -19,8 +19,10 @@
 
 namespace st {
 
-// Hamming distance of two 32-byte descriptors (portable popcount).
+// Hamming distance of two 32-byte descriptors: SIMD where the build has it,
+// else hamming256_portable (word popcounts), which tests compare against.
 int hamming256(const std::uint8_t* a, const std::uint8_t* b);
+int hamming256_portable(const std::uint8_t* a, const std::uint8_t* b);
 
 struct MatchConfig {
   int max_distance = 100;       // reject matches with a larger Hamming distance (of 256 bits)
