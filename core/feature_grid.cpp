@@ -18,7 +18,7 @@ Status FeatureGrid::configure(int width, int height, int cell_px) {
   const std::size_t n = static_cast<std::size_t>(cells_x_) * cells_y_;
   cell_start_.assign(n + 1, 0);
   cell_fill_.assign(n, 0);
-  items_.assign(kMaxKeypoints, 0);
+  items_.assign(kMaxKeypoints, Item{});
   return Status::Ok();
 }
 
@@ -39,11 +39,11 @@ void FeatureGrid::build(const FeatureSet& f) {
   std::copy(cell_start_.begin(), cell_start_.end() - 1, cell_fill_.begin());
   for (int i = 0; i < n; ++i) {
     const Keypoint& k = f.keypoints[static_cast<std::size_t>(i)];
-    items_[static_cast<std::size_t>(cell_fill_[static_cast<std::size_t>(cell_of(k.x, k.y))]++)] = i;
+    items_[static_cast<std::size_t>(cell_fill_[static_cast<std::size_t>(cell_of(k.x, k.y))]++)] = {k.x, k.y, k.octave, i};
   }
 }
 
-int FeatureGrid::query(const FeatureSet& f, float x, float y, float radius, int min_octave,
+int FeatureGrid::query(const FeatureSet& /*features: the set given to build()*/, float x, float y, float radius, int min_octave,
                        int max_octave, int* out, int capacity) const {
   if (!(radius >= 0.f) || !std::isfinite(x) || !std::isfinite(y) || cells_x_ == 0) return 0;
   const float cp = static_cast<float>(cell_px_);
@@ -54,18 +54,17 @@ int FeatureGrid::query(const FeatureSet& f, float x, float y, float radius, int 
   const float r2 = radius * radius;
   const bool any_octave = min_octave < 0 && max_octave < 0;
   int n = 0;
+  // The cells cx0..cx1 of one row are consecutive in the counting sort.
   for (int cy = cy0; cy <= cy1; ++cy) {
-    for (int cx = cx0; cx <= cx1; ++cx) {
-      const std::size_t c = static_cast<std::size_t>(cy * cells_x_ + cx);
-      for (int j = cell_start_[c]; j < cell_start_[c + 1]; ++j) {
-        const int i = items_[static_cast<std::size_t>(j)];
-        const Keypoint& k = f.keypoints[static_cast<std::size_t>(i)];
-        if (!any_octave && (k.octave < min_octave || k.octave > max_octave)) continue;
-        const float dx = k.x - x, dy = k.y - y;
-        if (dx * dx + dy * dy > r2) continue;
-        if (n >= capacity) return n;
-        out[n++] = i;
-      }
+    const std::size_t row = static_cast<std::size_t>(cy * cells_x_);
+    const int end = cell_start_[row + static_cast<std::size_t>(cx1) + 1];
+    for (int j = cell_start_[row + static_cast<std::size_t>(cx0)]; j < end; ++j) {
+      const Item& k = items_[static_cast<std::size_t>(j)];
+      if (!any_octave && (k.octave < min_octave || k.octave > max_octave)) continue;
+      const float dx = k.x - x, dy = k.y - y;
+      if (dx * dx + dy * dy > r2) continue;
+      if (n >= capacity) return n;
+      out[n++] = k.index;
     }
   }
   return n;

@@ -32,10 +32,17 @@ class FeatureGrid {
   int cells_y() const { return cells_y_; }
 
  private:
+  // A keypoint's position, octave and index, stored by cell so that a query
+  // reads one contiguous run per grid row instead of chasing indices into
+  // the FeatureSet (search by projection runs ~10^4 queries per frame).
+  struct Item {
+    float x, y;
+    std::int32_t octave, index;
+  };
   int cell_of(float x, float y) const;
   std::vector<std::int32_t> cell_start_;  // cells + 1 entries
   std::vector<std::int32_t> cell_fill_;   // scratch while building
-  std::vector<std::int32_t> items_;       // keypoint indices by cell (kMaxKeypoints)
+  std::vector<Item> items_;               // keypoints by cell (kMaxKeypoints)
   int cell_px_ = 16, cells_x_ = 0, cells_y_ = 0;
 };
 
