@@ -18,6 +18,7 @@ Status ImageMotion::configure(int width, int height) {
   prev_.assign(n, 0.f);
   cur_.assign(n, 0.f);
   scratch_.assign(n, 0.f);
+  column_sums_.assign(static_cast<std::size_t>(w_ * kShrink), 0);
   prev_mask_.assign(n, 0);
   cur_mask_.assign(n, 0);
   have_previous_ = false;
@@ -31,15 +32,20 @@ Status ImageMotion::configure(int width, int height) {
 void ImageMotion::shrink(GrayView luma, GrayView valid, float* image, std::uint8_t* mask) {
   const auto at = [this](int x, int y) { return static_cast<std::size_t>(y) * static_cast<std::size_t>(w_) + static_cast<std::size_t>(x); };
   for (int sy = 0; sy < h_; ++sy) {
-    float* out = scratch_.data() + at(0, sy);
-    std::fill(out, out + w_, 0.f);
+    // Column sums of the block's rows first (a plain widening add the
+    // compiler vectorises), then kShrink columns per small pixel.
+    std::uint16_t* col = column_sums_.data();
+    const int n = w_ * kShrink;
+    std::fill(col, col + n, std::uint16_t{0});
     for (int r = 0; r < kShrink; r += 2) {
       const std::uint8_t* row = luma.row(sy * kShrink + r);
-      for (int sx = 0; sx < w_; ++sx) {
-        int s = 0;
-        for (int k = 0; k < kShrink; ++k) s += row[sx * kShrink + k];
-        out[sx] += static_cast<float>(s);
-      }
+      for (int x = 0; x < n; ++x) col[x] = static_cast<std::uint16_t>(col[x] + row[x]);
+    }
+    float* out = scratch_.data() + at(0, sy);
+    for (int sx = 0; sx < w_; ++sx) {
+      int s = 0;
+      for (int k = 0; k < kShrink; ++k) s += col[sx * kShrink + k];
+      out[sx] = static_cast<float>(s);
     }
     // The valid mask may be coarser than the frame (ValidMaskBuilder works
     // at 1/downscale): sample it at the block centre in its own pixels.
@@ -80,22 +86,30 @@ void ImageMotion::shrink(GrayView luma, GrayView valid, float* image, std::uint8
 }
 
 // Mean squared difference at an integer shift over every stride-th pixel
-// in x and y.
+// in x and y (the x range that stays inside both images is found once per
+// shift, so the inner loop only tests the masks).
 double ImageMotion::ssd_at(int dx, int dy, int stride, int* n) const {
   double s = 0;
   int count = 0;
+  int x_lo = std::max(0, -dx);
+  x_lo = (x_lo + stride - 1) / stride * stride;  // on the stride grid, as the sampling is
+  const int x_hi = std::min(w_, w_ - dx);
   for (int y = 0; y < h_; y += stride) {
     const int yc = y + dy;
     if (yc < 0 || yc >= h_) continue;
-    for (int x = 0; x < w_; x += stride) {
-      const int xc = x + dx;
-      if (xc < 0 || xc >= w_) continue;
-      const std::size_t ip = static_cast<std::size_t>(y * w_ + x), ic = static_cast<std::size_t>(yc * w_ + xc);
-      if (!prev_mask_[ip] || !cur_mask_[ic]) continue;
-      const double d = static_cast<double>(cur_[ic] - prev_[ip]);
-      s += d * d;
-      ++count;
+    const std::size_t ip = static_cast<std::size_t>(y * w_), ic = static_cast<std::size_t>(yc * w_ + dx);
+    const float* p = prev_.data() + ip;
+    const float* c = cur_.data() + ic;
+    const std::uint8_t* pm = prev_mask_.data() + ip;
+    const std::uint8_t* cm = cur_mask_.data() + ic;
+    float row_sum = 0.f;
+    for (int x = x_lo; x < x_hi; x += stride) {
+      const bool both = (pm[x] & cm[x]) != 0;
+      const float d = c[x] - p[x];
+      row_sum += both ? d * d : 0.f;
+      count += both ? 1 : 0;
     }
+    s += static_cast<double>(row_sum);
   }
   *n = count;
   return count > 0 ? s / count : 1e30;
@@ -119,40 +133,40 @@ double ImageMotion::search(int cx, int cy, int radius, int step, int stride, Vec
   return best;
 }
 
-float ImageMotion::cur(double x, double y, float* gx, float* gy) const {
-  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
-  const float* r0 = cur_.data() + static_cast<std::size_t>(y0 * w_ + x0);
-  const float* r1 = r0 + w_;
-  *gx = (1.f - fy) * (r0[1] - r0[0]) + fy * (r1[1] - r1[0]);
-  *gy = (1.f - fx) * (r1[0] - r0[0]) + fx * (r1[1] - r0[1]);
-  return (1.f - fy) * ((1.f - fx) * r0[0] + fx * r0[1]) + fy * ((1.f - fx) * r1[0] + fx * r1[1]);
-}
-
 // Gauss-Newton on the translation t (small-image pixels) with the mean of
-// both images' gradients (ESM): converges from a few pixels off.
+// both images' gradients (ESM): converges from a few pixels off. Within one
+// iteration every pixel moves by the same t, so the bilinear weights and
+// the integer offset into the current image are the same for all of them.
 bool ImageMotion::refine(Vec2* t) const {
   const int needed = (w_ * h_) / 4;
+  const std::ptrdiff_t w = w_;
   double last_step = 1e9;
   for (int it = 0; it < kIterations; ++it) {
+    const int ix = static_cast<int>(std::floor(t->x())), iy = static_cast<int>(std::floor(t->y()));
+    const float fx = static_cast<float>(t->x() - ix), fy = static_cast<float>(t->y() - iy);
+    // The mask is tested at the nearest pixel of the shifted position.
+    const std::ptrdiff_t mask_offset = (fy >= 0.5f ? iy + 1 : iy) * w + (fx >= 0.5f ? ix + 1 : ix);
+    const float w00 = (1.f - fx) * (1.f - fy), w01 = fx * (1.f - fy), w10 = (1.f - fx) * fy, w11 = fx * fy;
+    // Rows and columns whose shifted position and its +1 neighbour are inside.
+    const int y_lo = std::max(1, -iy), y_hi = std::min(h_ - 1, h_ - 1 - iy);
+    const int x_lo = std::max(1, -ix), x_hi = std::min(w_ - 1, w_ - 1 - ix);
     double h00 = 0, h01 = 0, h11 = 0, g0 = 0, g1 = 0;
     int n = 0;
-    for (int y = 1; y < h_ - 1; ++y) {
-      const double yc = y + t->y();
-      if (yc < 0 || yc >= h_ - 1) continue;
-      for (int x = 1; x < w_ - 1; ++x) {
-        const double xc = x + t->x();
-        const std::size_t ip = static_cast<std::size_t>(y * w_ + x);
-        if (xc < 0 || xc >= w_ - 1 || !prev_mask_[ip]) continue;
-        const std::size_t ic = static_cast<std::size_t>(std::lround(yc)) * static_cast<std::size_t>(w_) +
-                               static_cast<std::size_t>(std::lround(xc));
-        if (!cur_mask_[ic]) continue;
-        float cgx = 0.f, cgy = 0.f;
-        const float c = cur(xc, yc, &cgx, &cgy);
-        const double jx = 0.25 * static_cast<double>(prev_[ip + 1] - prev_[ip - 1]) + 0.5 * static_cast<double>(cgx);
-        const double jy = 0.25 * static_cast<double>(prev_[ip + static_cast<std::size_t>(w_)] - prev_[ip - static_cast<std::size_t>(w_)]) +
-                          0.5 * static_cast<double>(cgy);
-        const double r = static_cast<double>(c - prev_[ip]);
+    for (int y = y_lo; y < y_hi; ++y) {
+      const std::ptrdiff_t row = y * w;
+      const std::ptrdiff_t shifted = (y + iy) * w + ix;
+      for (int x = x_lo; x < x_hi; ++x) {
+        const std::ptrdiff_t ip = row + x;
+        if (!prev_mask_[static_cast<std::size_t>(ip)] || !cur_mask_[static_cast<std::size_t>(ip + mask_offset)]) continue;
+        const float* r0 = cur_.data() + shifted + x;
+        const float* r1 = r0 + w;
+        const float c = w00 * r0[0] + w01 * r0[1] + w10 * r1[0] + w11 * r1[1];
+        const float cgx = (1.f - fy) * (r0[1] - r0[0]) + fy * (r1[1] - r1[0]);
+        const float cgy = (1.f - fx) * (r1[0] - r0[0]) + fx * (r1[1] - r0[1]);
+        const float* p = prev_.data() + ip;
+        const double jx = static_cast<double>(0.25f * (p[1] - p[-1]) + 0.5f * cgx);
+        const double jy = static_cast<double>(0.25f * (p[w] - p[-w]) + 0.5f * cgy);
+        const double r = static_cast<double>(c - p[0]);
         h00 += jx * jx;
         h01 += jx * jy;
         h11 += jy * jy;

@@ -44,12 +44,12 @@ class ImageMotion {
   double ssd_at(int dx, int dy, int stride, int* n) const;
   double search(int cx, int cy, int radius, int step, int stride, Vec2* t) const;
   bool refine(Vec2* t) const;
-  float cur(double x, double y, float* gx, float* gy) const;
 
   int w_ = 0, h_ = 0;
   bool have_previous_ = false;
   std::vector<float> prev_, cur_, scratch_;
   std::vector<std::uint8_t> prev_mask_, cur_mask_;
+  std::vector<std::uint16_t> column_sums_;  // shrink(): one block row, level-0 width
 };
 
 }  // namespace st
