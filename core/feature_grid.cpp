@@ -52,19 +52,34 @@ int FeatureGrid::query(const FeatureSet& /*features: the set given to build()*/,
   const int cx1 = std::min(cells_x_ - 1, static_cast<int>(std::floor((x + radius) / cp)));
   const int cy1 = std::min(cells_y_ - 1, static_cast<int>(std::floor((y + radius) / cp)));
   const float r2 = radius * radius;
+  // Octave window as one unsigned compare; any octave: the whole int range.
   const bool any_octave = min_octave < 0 && max_octave < 0;
+  const int lo = any_octave ? 0 : min_octave;
+  const auto span = any_octave ? ~0u : static_cast<unsigned>(max_octave - min_octave);
   int n = 0;
-  // The cells cx0..cx1 of one row are consecutive in the counting sort.
+  // The cells cx0..cx1 of one row are consecutive in the counting sort. The
+  // tests are random per keypoint (octaves mix), so the loop is branch-free:
+  // every item is written and the count advances only for a hit.
   for (int cy = cy0; cy <= cy1; ++cy) {
     const std::size_t row = static_cast<std::size_t>(cy * cells_x_);
+    const int begin = cell_start_[row + static_cast<std::size_t>(cx0)];
     const int end = cell_start_[row + static_cast<std::size_t>(cx1) + 1];
-    for (int j = cell_start_[row + static_cast<std::size_t>(cx0)]; j < end; ++j) {
+    if (capacity - n < end - begin) {  // may not fit: the checked loop
+      for (int j = begin; j < end; ++j) {
+        const Item& k = items_[static_cast<std::size_t>(j)];
+        const float dx = k.x - x, dy = k.y - y;
+        if (static_cast<unsigned>(k.octave - lo) > span || dx * dx + dy * dy > r2) continue;
+        if (n >= capacity) return n;
+        out[n++] = k.index;
+      }
+      continue;
+    }
+    for (int j = begin; j < end; ++j) {
       const Item& k = items_[static_cast<std::size_t>(j)];
-      if (!any_octave && (k.octave < min_octave || k.octave > max_octave)) continue;
       const float dx = k.x - x, dy = k.y - y;
-      if (dx * dx + dy * dy > r2) continue;
-      if (n >= capacity) return n;
-      out[n++] = k.index;
+      const bool hit = (static_cast<unsigned>(k.octave - lo) <= span) & (dx * dx + dy * dy <= r2);
+      out[n] = k.index;
+      n += hit ? 1 : 0;
     }
   }
   return n;
