@@ -20,6 +20,10 @@ bool visible_at_depth(double z_mm, float raster_depth_mm) {
   return raster_depth_mm > 0.f && z_mm <= 1.03 * static_cast<double>(raster_depth_mm) + 2.0;
 }
 
+// How far (level-0 px) the final pose may move the view from the render's
+// pose before the quality measures need a new render.
+constexpr double kReuseRenderPx = 8.0;
+
 }  // namespace
 
 bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
@@ -251,10 +255,12 @@ bool TrackerImpl::track_from(const SE3& T_predicted, float first_radius_px, Pose
   return true;
 }
 
-// Mask agreement (inliers on the organ and not hidden, at the final pose),
-// inlier spread over a 4x4 image grid, mean inlier depth; marks the
-// keypoints' match status. Re-renders when the final pose moved the image
-// by more than ~3 px from the render's pose.
+// Mask agreement (inliers on the organ and not hidden), inlier spread over
+// a 4x4 image grid, mean inlier depth; marks the keypoints' match status.
+// Each inlier's model point is looked up in the render at its own pixel
+// there, so the render of the prediction serves while the final pose moved
+// the image by at most kReuseRenderPx (occlusion barely changes over a few
+// pixels); beyond, the organ is rendered again at the final pose.
 void TrackerImpl::measure_final(PoseEstimate* e) {
   const SE3& T = e->T_camera_model;
   double depth_sum = 0, chi2_sum = 0;
@@ -269,7 +275,7 @@ void TrackerImpl::measure_final(PoseEstimate* e) {
     }
   e->mean_depth_mm = depth_n > 0 ? depth_sum / depth_n : 100.0;
   e->whitened_rms = depth_n > 0 ? std::sqrt(chi2_sum / depth_n) : 0.0;
-  if (!raster_valid_ || image_shift_px(raster_pose_, T) > 3.0) render_at(T);
+  if (!raster_valid_ || image_shift_px(raster_pose_, T) > kReuseRenderPx) render_at(T);
   const ImageView<const float> depth = raster_.depth();
   std::uint32_t cells = 0;
   int agree = 0;
@@ -279,9 +285,10 @@ void TrackerImpl::measure_final(PoseEstimate* e) {
     kp_inlier_[static_cast<std::size_t>(k)] = corr_inlier_[is] ? 2 : 1;
     if (!corr_inlier_[is]) continue;
     const Vec2& px = corr_px_[is];
-    const Vec2 rp = raster_.full_to_raster(px);
+    const Vec3 p_render = raster_pose_ * corr_p_[is];
+    const Vec2 rp = raster_.full_to_raster(K_.project(p_render));
     const int x = static_cast<int>(std::lround(rp.x())), y = static_cast<int>(std::lround(rp.y()));
-    if (depth.contains(x, y) && visible_at_depth((T * corr_p_[is]).z(), depth(x, y))) ++agree;
+    if (p_render.z() > 1.0 && depth.contains(x, y) && visible_at_depth(p_render.z(), depth(x, y))) ++agree;
     const int cx = std::clamp(static_cast<int>(4.0 * px.x() / K_.width), 0, 3);
     const int cy = std::clamp(static_cast<int>(4.0 * px.y() / K_.height), 0, 3);
     cells |= 1u << (cy * 4 + cx);
