@@ -14,52 +14,35 @@ namespace st {
 
 namespace {
 
-class Se3LeftManifold final : public ceres::Manifold {
- public:
-  int AmbientSize() const override { return 7; }
-  int TangentSize() const override { return 6; }
-  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
-    return se3_plus(x, delta, x_plus_delta);
-  }
-  bool PlusJacobian(const double* x, double* jacobian) const override {
-    Eigen::Map<Mat76> J(jacobian);
-    J = se3_plus_jacobian(x);
-    return true;
-  }
-  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
-    return se3_minus(y, x, y_minus_x);
-  }
-  bool MinusJacobian(const double* x, double* jacobian) const override {
-    Eigen::Map<Mat67> J(jacobian);
-    J = se3_minus_jacobian(x);
-    return true;
-  }
-};
-
 // The linearization of one pose block, recomputed only when the block's
-// values change: Ceres evaluates all ~1000 residuals of a pose at the same
-// values, so the quaternion-to-matrix and minus-Jacobian work is done once
+// delta changes: Ceres evaluates all ~1000 residuals of a pose at the same
+// values, so exp(delta) * T0 and the left Jacobian of exp are computed once
 // per pose and evaluation instead of once per residual. Mutable from the
 // const Evaluate(): safe because the solver runs single-threaded.
 class PoseCache {
  public:
-  void reset() { x_[0] = std::numeric_limits<double>::quiet_NaN(); }  // NaN != anything: recompute
-  const PoseLinearization& at(const double* x) const {
+  void reset(const SE3& T0_camera_model) {
+    T0_ = T0_camera_model;
+    delta_[0] = std::numeric_limits<double>::quiet_NaN();  // NaN != anything: recompute
+  }
+  const PoseLinearization& at(const double* delta) const {
     bool same = true;
-    for (int k = 0; k < kPoseParams; ++k) same = same && x_[k] == x[k];
+    for (int k = 0; k < 6; ++k) same = same && delta_[k] == delta[k];
     if (!same) {
-      for (int k = 0; k < kPoseParams; ++k) x_[k] = x[k];
-      pose_linearization(x, &lin_);
+      for (int k = 0; k < 6; ++k) delta_[k] = delta[k];
+      pose_linearization(T0_, delta, &lin_);
     }
     return lin_;
   }
+  const SE3& T0() const { return T0_; }
 
  private:
-  mutable double x_[kPoseParams] = {std::numeric_limits<double>::quiet_NaN()};
+  SE3 T0_;
+  mutable double delta_[6] = {std::numeric_limits<double>::quiet_NaN()};
   mutable PoseLinearization lin_;
 };
 
-class ReprojectionCost final : public ceres::SizedCostFunction<2, 7, 3> {
+class ReprojectionCost final : public ceres::SizedCostFunction<2, 6, 3> {
  public:
   void set(const Pinhole& K, const Vec2& px_ideal, double info, double min_depth_mm, const PoseCache* pose) {
     pose_ = pose;
@@ -114,7 +97,6 @@ class PlaneCost final : public ceres::SizedCostFunction<2, 3> {
 }  // namespace
 
 struct BundleAdjuster::Impl {
-  Se3LeftManifold manifold;
   std::unique_ptr<ceres::LossFunction> reprojection_loss, shape_loss;
   // Cost functions are not copyable: fixed arrays sized in configure(), not
   // owned by the per-solve Problem.
@@ -122,6 +104,7 @@ struct BundleAdjuster::Impl {
   std::unique_ptr<ShapeCost[]> shape_costs;
   std::unique_ptr<PlaneCost[]> plane_costs;
   std::unique_ptr<PoseCache[]> pose_caches;  // per job keyframe, kMaxKeyframes
+  std::unique_ptr<double[]> deltas;          // 6 per job keyframe: the pose blocks Ceres solves
   ceres::Problem::Options problem_options;
   ceres::Solver::Options solver_options;
   ceres::Problem* problem = nullptr;  // during solve() only
@@ -153,6 +136,7 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   impl_->shape_costs = std::make_unique<ShapeCost[]>(static_cast<std::size_t>(max_points));
   impl_->plane_costs = std::make_unique<PlaneCost[]>(static_cast<std::size_t>(max_points));
   impl_->pose_caches = std::make_unique<PoseCache[]>(static_cast<std::size_t>(kMaxKeyframes));
+  impl_->deltas = std::make_unique<double[]>(static_cast<std::size_t>(kMaxKeyframes) * 6);
   planes_.assign(static_cast<std::size_t>(max_points), ShapePlane{});
   for (int i = 0; i < max_points; ++i) {
     impl_->shape_costs[static_cast<std::size_t>(i)].set(&surface_, options.w_shape);
@@ -165,7 +149,6 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   ceres::Problem::Options& po = impl_->problem_options;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.disable_all_safety_checks = true;  // valid() checked the job; saves ~1/3 of the build
   ceres::Solver::Options& so = impl_->solver_options;
   so.linear_solver_type = ceres::DENSE_SCHUR;
@@ -204,17 +187,19 @@ int BundleAdjuster::build(BaJob* job) {
   ceres::Problem& problem = *impl_->problem;
   int fixed = 0, oldest = 0;
   for (int i = 0; i < job->keyframe_count; ++i) {
-    BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
-    impl_->pose_caches[static_cast<std::size_t>(i)].reset();
-    problem.AddParameterBlock(k.pose, kPoseParams, &impl_->manifold);
+    const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
+    impl_->pose_caches[static_cast<std::size_t>(i)].reset(job->pose(i));
+    double* delta = pose_delta_block(i);
+    std::fill(delta, delta + 6, 0.0);
+    problem.AddParameterBlock(delta, 6);
     if (k.fixed) {
-      problem.SetParameterBlockConstant(k.pose);
+      problem.SetParameterBlockConstant(delta);
       ++fixed;
     }
     if (k.frame < job->keyframes[static_cast<std::size_t>(oldest)].frame) oldest = i;
   }
   if (fixed == 0) {  // gauge: hold the oldest keyframe
-    problem.SetParameterBlockConstant(job->keyframes[static_cast<std::size_t>(oldest)].pose);
+    problem.SetParameterBlockConstant(pose_delta_block(oldest));
     fixed = 1;
   }
   job->summary.fixed_keyframes = fixed;
@@ -224,18 +209,18 @@ int BundleAdjuster::build(BaJob* job) {
   int used = 0;
   for (int i = 0; i < job->observation_count; ++i) {
     const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
-    BaKeyframe& k = job->keyframes[static_cast<std::size_t>(o.keyframe)];
+    const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(o.keyframe)];
     // Keyframe frames are distinct: at most cap observations pass.
     if (cap > 0 && k.frame < newest_frames_[static_cast<std::size_t>(o.point) * static_cast<std::size_t>(cap) +
                                             static_cast<std::size_t>(cap - 1)])
       continue;
     BaPoint& p = job->points[static_cast<std::size_t>(o.point)];
-    const Vec3 p_camera = pose_from_params(k.pose) * job->point(o.point);
+    const Vec3 p_camera = impl_->pose_caches[static_cast<std::size_t>(o.keyframe)].T0() * job->point(o.point);
     if (!(p_camera.z() > options_.min_depth_mm)) continue;  // Ceres needs a valid start
     ReprojectionCost& c = impl_->reprojection_costs[static_cast<std::size_t>(used++)];
     c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm,
           &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)]);
-    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), k.pose, p.p_model);
+    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), pose_delta_block(o.keyframe), p.p_model);
     point_observed_[static_cast<std::size_t>(o.point)] = 1;
   }
   if (options_.w_shape > 0) add_shape_residuals(job);
@@ -274,11 +259,12 @@ void BundleAdjuster::add_shape_residuals(BaJob* job) {
 // find, given instead of searched for (its independent-set search builds a
 // graph of the whole problem on every solve).
 static std::shared_ptr<ceres::ParameterBlockOrdering> schur_ordering(BaJob* job,
-                                                                     const std::vector<std::uint8_t>& point_observed) {
+                                                                     const std::vector<std::uint8_t>& point_observed,
+                                                                     double* deltas) {
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
   for (int i = 0; i < job->point_count; ++i)
     if (point_observed[static_cast<std::size_t>(i)]) ordering->AddElementToGroup(job->points[static_cast<std::size_t>(i)].p_model, 0);
-  for (int i = 0; i < job->keyframe_count; ++i) ordering->AddElementToGroup(job->keyframes[static_cast<std::size_t>(i)].pose, 1);
+  for (int i = 0; i < job->keyframe_count; ++i) ordering->AddElementToGroup(deltas + 6 * i, 1);
   return ordering;
 }
 
@@ -294,14 +280,30 @@ bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
   job->summary.observations = used;
   if (used == 0) return false;
   ceres::Solver::Options so = impl_->solver_options;
-  so.linear_solver_ordering = schur_ordering(job, point_observed_);
+  so.linear_solver_ordering = schur_ordering(job, point_observed_, impl_->deltas.get());
   if (max_iterations > 0) so.max_num_iterations = max_iterations;
   if (max_time_s > 0) so.max_solver_time_in_seconds = max_time_s;
   ceres::Solver::Summary s;
   ceres::Solve(so, &problem, &s);
+  apply_pose_deltas(job);
   finish(job, s.initial_cost, s.final_cost, s.total_time_in_seconds, static_cast<int>(s.iterations.size()),
          s.IsSolutionUsable());
   return job->summary.usable;
+}
+
+double* BundleAdjuster::pose_delta_block(int keyframe) {
+  return &impl_->deltas[static_cast<std::size_t>(keyframe) * 6];
+}
+
+// The solved poses exp(delta) * T0 back into the job's quaternion blocks.
+void BundleAdjuster::apply_pose_deltas(BaJob* job) {
+  for (int i = 0; i < job->keyframe_count; ++i) {
+    const double* d = pose_delta_block(i);
+    Vec6 delta;
+    for (int k = 0; k < 6; ++k) delta[k] = d[k];
+    if (delta.isZero(0.0)) continue;  // fixed, or not moved: keep the handed-over values bit for bit
+    pose_to_params(SE3::exp(delta) * job->pose(i), job->keyframes[static_cast<std::size_t>(i)].pose);
+  }
 }
 
 // Summary, finiteness, and the per-point shift gate (a point moved too far

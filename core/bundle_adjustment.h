@@ -2,9 +2,9 @@
 // robust reprojection residuals (Huber on octave-whitened pixels) for every
 // observation, plus the paper's shape residual w_shape * rho(|f - D(f)|)
 // (Huber in mm) for every point, D from ClosestPointIndex. Keyframe poses
-// live on Se3LeftManifold; keyframes flagged fixed are held constant (when a
-// job has none, the oldest keyframe is fixed to remove the gauge freedom
-// left when w_shape = 0). Single-threaded, dense Schur complement (a window
+// are 6-dim left deltas around the handed-over pose (core/ba_residuals.h);
+// keyframes flagged fixed are held constant (when a job has none, the oldest
+// keyframe is fixed to remove the gauge freedom left when w_shape = 0). Single-threaded, dense Schur complement (a window
 // has few poses and many points), bounded iterations and solver time.
 //
 // Memory: the cost-function objects are pooled (sized in configure()) and
@@ -77,6 +77,8 @@ class BundleAdjuster {
   int build(BaJob* job);
   void newest_frames_per_point(const BaJob& job);
   void add_shape_residuals(BaJob* job);
+  double* pose_delta_block(int keyframe);  // Ceres' 6-dim pose block of a job keyframe
+  void apply_pose_deltas(BaJob* job);
   void finish(BaJob* job, double initial_cost, double final_cost, double total_s, int iterations, bool usable);
 
   BundleAdjusterOptions options_;
