@@ -34,6 +34,8 @@ struct BundleAdjusterOptions {
                                     // plane at the start value (core/ba_residuals.h)
   double reprojection_huber = 2.447651936;  // on whitened pixels: sqrt(chi2 95%, 2 DoF)
   int max_iterations = 10;
+  double relative_gradient_tolerance = 1e-4;  // stop once max|gradient| fell below this fraction of
+                                              // its start value (0: Ceres' own tests only)
   double max_time_s = 0.05;         // Ceres stops after this much solver time
   double min_depth_mm = 1.0;        // observations at a smaller depth are left out
   double max_point_shift_mm = 10.0; // a point moved farther is marked rejected (the
