@@ -143,7 +143,9 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
       !(options.reprojection_huber > 0) || options.max_iterations < 1 || !(options.max_time_s > 0) ||
       !(options.min_depth_mm > 0) || !(options.max_point_shift_mm > 0) || options.surface_distance_samples < 0 ||
       options.max_observations_per_point < 0 || !(options.relative_gradient_tolerance >= 0) ||
-      !(options.relative_gradient_tolerance < 1) || options.max_observations_per_point > kMaxObservationsPerPointCap)
+      !(options.relative_gradient_tolerance < 1) || options.max_observations_per_point > kMaxObservationsPerPointCap ||
+      options.max_fixed_observations_per_point < 0 ||
+      options.max_fixed_observations_per_point > kMaxObservationsPerPointCap)
     return make_error("bundle adjustment: options out of range (w_shape >= 0, thresholds and limits > 0)");
   if (!pinhole_is_usable(K)) return make_error("bundle adjustment: the pinhole is not usable");
   if (max_points < 1 || max_points > kMaxMapPoints || max_observations < 1)
@@ -170,6 +172,8 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   max_observations_ = max_observations;
   point_observed_.assign(static_cast<std::size_t>(max_points), 0);
   newest_frames_.assign(static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_observations_per_point)), -1);
+  newest_fixed_frames_.assign(
+      static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_fixed_observations_per_point)), -1);
   ceres::Problem::Options& po = impl_->problem_options;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
@@ -232,16 +236,14 @@ int BundleAdjuster::build(BaJob* job) {
   }
   job->summary.fixed_keyframes = fixed;
   for (int i = 0; i < job->point_count; ++i) point_observed_[static_cast<std::size_t>(i)] = 0;
-  const int cap = options_.max_observations_per_point;
-  if (cap > 0) newest_frames_per_point(*job);
+  if (options_.max_observations_per_point > 0)
+    newest_frames_per_point(*job, options_.max_observations_per_point, false, &newest_frames_);
+  if (options_.max_fixed_observations_per_point > 0)
+    newest_frames_per_point(*job, options_.max_fixed_observations_per_point, true, &newest_fixed_frames_);
   int used = 0;
   for (int i = 0; i < job->observation_count; ++i) {
     const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
-    const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(o.keyframe)];
-    // Keyframe frames are distinct: at most cap observations pass.
-    if (cap > 0 && k.frame < newest_frames_[static_cast<std::size_t>(o.point) * static_cast<std::size_t>(cap) +
-                                            static_cast<std::size_t>(cap - 1)])
-      continue;
+    if (!keep_observation(*job, o)) continue;
     BaPoint& p = job->points[static_cast<std::size_t>(o.point)];
     const Vec3 p_camera = impl_->pose_caches[static_cast<std::size_t>(o.keyframe)].T0() * job->point(o.point);
     if (!(p_camera.z() > options_.min_depth_mm)) continue;  // Ceres needs a valid start
@@ -249,24 +251,43 @@ int BundleAdjuster::build(BaJob* job) {
     c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm,
           &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)]);
     problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), pose_delta_block(o.keyframe), p.p_model);
+    if (job->keyframes[static_cast<std::size_t>(o.keyframe)].fixed) ++job->summary.fixed_observations;
     point_observed_[static_cast<std::size_t>(o.point)] = 1;
   }
   if (options_.w_shape > 0) add_shape_residuals(job);
   return used;
 }
 
-// Per point, the frames of its cap newest observing keyframes (descending,
-// -1 padded) by insertion into a fixed row: allocates nothing.
-void BundleAdjuster::newest_frames_per_point(const BaJob& job) {
-  const auto cap = static_cast<std::size_t>(options_.max_observations_per_point);
-  std::fill(newest_frames_.begin(), newest_frames_.begin() + static_cast<std::ptrdiff_t>(job.point_count * cap), -1);
+// Per point, the frames of its cap newest observing keyframes (only the
+// fixed ones when fixed_only; descending, -1 padded) by insertion into a
+// fixed row: allocates nothing.
+void BundleAdjuster::newest_frames_per_point(const BaJob& job, int cap, bool fixed_only,
+                                             std::vector<std::int32_t>* rows) const {
+  const auto n = static_cast<std::size_t>(cap);
+  std::fill(rows->begin(), rows->begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(job.point_count) * n), -1);
   for (int i = 0; i < job.observation_count; ++i) {
     const BaObservation& o = job.observations[static_cast<std::size_t>(i)];
-    std::int32_t frame = job.keyframes[static_cast<std::size_t>(o.keyframe)].frame;
-    std::int32_t* row = &newest_frames_[static_cast<std::size_t>(o.point) * cap];
-    for (std::size_t j = 0; j < cap; ++j)
+    const BaKeyframe& k = job.keyframes[static_cast<std::size_t>(o.keyframe)];
+    if (fixed_only && !k.fixed) continue;
+    std::int32_t frame = k.frame;
+    std::int32_t* row = &(*rows)[static_cast<std::size_t>(o.point) * n];
+    for (std::size_t j = 0; j < n; ++j)
       if (frame > row[j]) std::swap(frame, row[j]);
   }
+}
+
+// The observation caps (the rows hold the newest frames; keyframe frames
+// are distinct, so at most cap observations of a point pass each).
+bool BundleAdjuster::keep_observation(const BaJob& job, const BaObservation& o) const {
+  const BaKeyframe& k = job.keyframes[static_cast<std::size_t>(o.keyframe)];
+  const auto point = static_cast<std::size_t>(o.point);
+  const int cap = options_.max_observations_per_point, cap_fixed = options_.max_fixed_observations_per_point;
+  if (cap > 0 && k.frame < newest_frames_[point * static_cast<std::size_t>(cap) + static_cast<std::size_t>(cap - 1)])
+    return false;
+  if (k.fixed && cap_fixed > 0 &&
+      k.frame < newest_fixed_frames_[point * static_cast<std::size_t>(cap_fixed) + static_cast<std::size_t>(cap_fixed - 1)])
+    return false;
+  return true;
 }
 
 void BundleAdjuster::add_shape_residuals(BaJob* job) {

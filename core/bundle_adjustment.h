@@ -43,6 +43,10 @@ struct BundleAdjusterOptions {
   int max_observations_per_point = 0;  // 0: all; else only the newest (keyframe frame)
                                        // this many per point, <= kMaxObservationsPerPointCap:
                                        // bounds the Schur work per point (quadratic in it)
+  int max_fixed_observations_per_point = 0;  // 0: all; else only the newest this many
+                                             // observations from fixed keyframes per point
+                                             // (<= kMaxObservationsPerPointCap): a tracker window
+                                             // pulls in every older keyframe seeing its points
   int surface_distance_samples = 128;  // summary.mean_surface_distance_mm over at most this
                                        // many evenly spaced points (0: all); one exact
                                        // closest-point query each (~1.6 us)
@@ -77,7 +81,8 @@ class BundleAdjuster {
   struct Impl;  // the Ceres objects (kept out of this header: glog macros)
   bool valid(const BaJob& job) const;
   int build(BaJob* job);
-  void newest_frames_per_point(const BaJob& job);
+  void newest_frames_per_point(const BaJob& job, int cap, bool fixed_only, std::vector<std::int32_t>* rows) const;
+  bool keep_observation(const BaJob& job, const BaObservation& o) const;
   void add_shape_residuals(BaJob* job);
   double* pose_delta_block(int keyframe);  // Ceres' 6-dim pose block of a job keyframe
   void apply_pose_deltas(BaJob* job);
@@ -89,6 +94,7 @@ class BundleAdjuster {
   std::unique_ptr<Impl> impl_;
   std::vector<std::uint8_t> point_observed_;  // per job point: has a reprojection residual
   std::vector<std::int32_t> newest_frames_;   // per job point: max_observations_per_point newest frames, descending
+  std::vector<std::int32_t> newest_fixed_frames_;  // the same over fixed keyframes, max_fixed_observations_per_point
   std::vector<ShapePlane> planes_;            // per job point: tangent plane at the start value
   int max_points_ = 0, max_observations_ = 0;
   bool configured_ = false;

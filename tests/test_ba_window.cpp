@@ -181,3 +181,51 @@ TEST_CASE("ba window: observations capped to the newest k per point still bring 
     CHECK_FALSE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
   }
 }
+
+TEST_CASE("ba window: observations from fixed keyframes capped per point; the window still comes back") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BaWindowSpec spec;
+  spec.points = 400;
+  spec.fixed_keyframes = 4;  // a tracker window pulls in many older keyframes
+  constexpr int kCap = 1;
+  for (const double w_shape : {100.0, 0.0}) {
+    BaWindow w = make_ba_window(mesh, K, spec);
+    BundleAdjusterOptions o = options(w_shape);
+    o.max_fixed_observations_per_point = kCap;
+    BundleAdjuster ba;
+    REQUIRE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+    // Per point: every free observation, at most kCap fixed ones.
+    int expected = 0, expected_fixed = 0;
+    for (int p = 0; p < w.job.point_count; ++p) {
+      int fixed = 0;
+      for (int i = 0; i < w.job.observation_count; ++i) {
+        const BaObservation& ob = w.job.observations[static_cast<std::size_t>(i)];
+        if (ob.point != p) continue;
+        if (w.job.keyframes[static_cast<std::size_t>(ob.keyframe)].fixed)
+          ++fixed;
+        else
+          ++expected;
+      }
+      expected_fixed += std::min(fixed, kCap);
+    }
+    const Errors start = errors(w, ba);
+    REQUIRE(ba.solve(&w.job));
+    const Errors end = errors(w, ba);
+    MESSAGE("w_shape " << w_shape << ", <= " << kCap << " fixed obs/point: " << w.job.summary.observations << " of "
+                       << w.job.observation_count << " observations (" << w.job.summary.fixed_observations
+                       << " fixed); rotation " << start.rot_deg << " -> " << end.rot_deg << " deg, centre "
+                       << start.trans_mm << " -> " << end.trans_mm << " mm, points " << start.point_mm << " -> "
+                       << end.point_mm << " mm");
+    CHECK(w.job.summary.fixed_observations == expected_fixed);  // all in front in the simulated window
+    CHECK(w.job.summary.observations == expected + expected_fixed);
+    CHECK(w.job.summary.observations < w.job.observation_count);
+    CHECK(end.rot_deg < 0.2 * start.rot_deg);
+    CHECK(end.trans_mm < 0.2 * start.trans_mm);
+    CHECK(end.point_mm < (w_shape > 0 ? 0.5 : 1.0) * start.point_mm);
+    for (const int bad : {-1, kMaxObservationsPerPointCap + 1}) {
+      o.max_fixed_observations_per_point = bad;
+      CHECK_FALSE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+    }
+  }
+}
