@@ -145,7 +145,8 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
       options.max_observations_per_point < 0 || !(options.relative_gradient_tolerance >= 0) ||
       !(options.relative_gradient_tolerance < 1) || options.max_observations_per_point > kMaxObservationsPerPointCap ||
       options.max_fixed_observations_per_point < 0 ||
-      options.max_fixed_observations_per_point > kMaxObservationsPerPointCap)
+      options.max_fixed_observations_per_point > kMaxObservationsPerPointCap || options.min_observations_per_point < 1 ||
+      options.min_observations_per_point > 255)
     return make_error("bundle adjustment: options out of range (w_shape >= 0, thresholds and limits > 0)");
   if (!pinhole_is_usable(K)) return make_error("bundle adjustment: the pinhole is not usable");
   if (max_points < 1 || max_points > kMaxMapPoints || max_observations < 1)
@@ -235,27 +236,44 @@ int BundleAdjuster::build(BaJob* job) {
     fixed = 1;
   }
   job->summary.fixed_keyframes = fixed;
-  for (int i = 0; i < job->point_count; ++i) point_observed_[static_cast<std::size_t>(i)] = 0;
   if (options_.max_observations_per_point > 0)
     newest_frames_per_point(*job, options_.max_observations_per_point, false, &newest_frames_);
   if (options_.max_fixed_observations_per_point > 0)
     newest_frames_per_point(*job, options_.max_fixed_observations_per_point, true, &newest_fixed_frames_);
+  select_points(job);
   int used = 0;
   for (int i = 0; i < job->observation_count; ++i) {
     const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
-    if (!keep_observation(*job, o)) continue;
-    BaPoint& p = job->points[static_cast<std::size_t>(o.point)];
-    const Vec3 p_camera = impl_->pose_caches[static_cast<std::size_t>(o.keyframe)].T0() * job->point(o.point);
-    if (!(p_camera.z() > options_.min_depth_mm)) continue;  // Ceres needs a valid start
+    if (!point_observed_[static_cast<std::size_t>(o.point)] || !usable_observation(*job, o)) continue;
     ReprojectionCost& c = impl_->reprojection_costs[static_cast<std::size_t>(used++)];
     c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm,
           &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)]);
-    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), pose_delta_block(o.keyframe), p.p_model);
+    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), pose_delta_block(o.keyframe),
+                             job->points[static_cast<std::size_t>(o.point)].p_model);
     if (job->keyframes[static_cast<std::size_t>(o.keyframe)].fixed) ++job->summary.fixed_observations;
-    point_observed_[static_cast<std::size_t>(o.point)] = 1;
   }
   if (options_.w_shape > 0) add_shape_residuals(job);
   return used;
+}
+
+// point_observed_[i] = 1 for the points that join the problem: at least
+// min_observations_per_point usable observations. With one view a point's 2
+// reprojection rows (+1 shape row) are met exactly by its own 3 unknowns for
+// any pose, so it tells the poses nothing (and a point made from one
+// keyframe's ray and the mesh depth already sits at that optimum); tracker
+// windows hold thousands of such points (half the blocks of a solve).
+void BundleAdjuster::select_points(BaJob* job) {
+  for (int i = 0; i < job->point_count; ++i) point_observed_[static_cast<std::size_t>(i)] = 0;
+  for (int i = 0; i < job->observation_count; ++i) {  // saturating counts
+    const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
+    std::uint8_t& n = point_observed_[static_cast<std::size_t>(o.point)];
+    if (n < 255 && usable_observation(*job, o)) ++n;
+  }
+  for (int i = 0; i < job->point_count; ++i) {
+    std::uint8_t& n = point_observed_[static_cast<std::size_t>(i)];
+    if (n > 0 && n < options_.min_observations_per_point) ++job->summary.points_skipped;
+    n = n >= options_.min_observations_per_point ? 1 : 0;
+  }
 }
 
 // Per point, the frames of its cap newest observing keyframes (only the
@@ -274,6 +292,13 @@ void BundleAdjuster::newest_frames_per_point(const BaJob& job, int cap, bool fix
     for (std::size_t j = 0; j < n; ++j)
       if (frame > row[j]) std::swap(frame, row[j]);
   }
+}
+
+// Passes the caps and is in front of its keyframe (Ceres needs a valid start).
+bool BundleAdjuster::usable_observation(const BaJob& job, const BaObservation& o) const {
+  if (!keep_observation(job, o)) return false;
+  const Vec3 p_camera = impl_->pose_caches[static_cast<std::size_t>(o.keyframe)].T0() * job.point(o.point);
+  return p_camera.z() > options_.min_depth_mm;
 }
 
 // The observation caps (the rows hold the newest frames; keyframe frames

@@ -43,6 +43,8 @@ struct BundleAdjusterOptions {
   int max_observations_per_point = 0;  // 0: all; else only the newest (keyframe frame)
                                        // this many per point, <= kMaxObservationsPerPointCap:
                                        // bounds the Schur work per point (quadratic in it)
+  int min_observations_per_point = 2;  // points with fewer usable observations are left out
+                                       // (unchanged): one view carries no pose information
   int max_fixed_observations_per_point = 0;  // 0: all; else only the newest this many
                                              // observations from fixed keyframes per point
                                              // (<= kMaxObservationsPerPointCap): a tracker window
@@ -83,6 +85,8 @@ class BundleAdjuster {
   int build(BaJob* job);
   void newest_frames_per_point(const BaJob& job, int cap, bool fixed_only, std::vector<std::int32_t>* rows) const;
   bool keep_observation(const BaJob& job, const BaObservation& o) const;
+  bool usable_observation(const BaJob& job, const BaObservation& o) const;
+  void select_points(BaJob* job);
   void add_shape_residuals(BaJob* job);
   double* pose_delta_block(int keyframe);  // Ceres' 6-dim pose block of a job keyframe
   void apply_pose_deltas(BaJob* job);
@@ -92,7 +96,7 @@ class BundleAdjuster {
   Pinhole K_;
   ClosestPointIndex surface_;
   std::unique_ptr<Impl> impl_;
-  std::vector<std::uint8_t> point_observed_;  // per job point: has a reprojection residual
+  std::vector<std::uint8_t> point_observed_;  // per job point: in the problem (a count while building)
   std::vector<std::int32_t> newest_frames_;   // per job point: max_observations_per_point newest frames, descending
   std::vector<std::int32_t> newest_fixed_frames_;  // the same over fixed keyframes, max_fixed_observations_per_point
   std::vector<ShapePlane> planes_;            // per job point: tangent plane at the start value

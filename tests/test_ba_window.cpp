@@ -229,3 +229,70 @@ TEST_CASE("ba window: observations from fixed keyframes capped per point; the wi
     }
   }
 }
+
+TEST_CASE("ba window: points seen once are left out unchanged (no pose information), or kept on request") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BaWindowSpec spec;
+  spec.points = 300;
+  const BaWindow w = make_ba_window(mesh, K, spec);
+  // The window plus 50 single-view points: copies of window points with only
+  // their first observation.
+  constexpr int kSingle = 50;
+  BaJob job;
+  REQUIRE(job.configure(w.job.keyframe_count, w.job.point_count + kSingle, w.job.observation_count + kSingle).ok());
+  for (int k = 0; k < w.job.keyframe_count; ++k) {
+    const BaKeyframe& kf = w.job.keyframes[static_cast<std::size_t>(k)];
+    REQUIRE(job.add_keyframe(kf.id, kf.frame, w.job.pose(k), kf.fixed) == k);
+  }
+  for (int i = 0; i < w.job.point_count; ++i) REQUIRE(job.add_point(i, 1, w.job.point(i)) == i);
+  for (int i = 0; i < w.job.observation_count; ++i) {
+    const BaObservation& o = w.job.observations[static_cast<std::size_t>(i)];
+    REQUIRE(job.add_observation(o.keyframe, o.point, Vec2(o.x_ideal, o.y_ideal), o.info));
+  }
+  for (int s = 0; s < kSingle; ++s) {
+    const int p = job.add_point(w.job.point_count + s, 1, w.job.point(s));
+    for (int i = 0; i < w.job.observation_count; ++i) {
+      const BaObservation& o = w.job.observations[static_cast<std::size_t>(i)];
+      if (o.point != s || w.job.keyframes[static_cast<std::size_t>(o.keyframe)].fixed) continue;
+      REQUIRE(job.add_observation(o.keyframe, p, Vec2(o.x_ideal, o.y_ideal), o.info));
+      break;
+    }
+  }
+  for (const int min_obs : {2, 1}) {
+    BundleAdjusterOptions o = options(100.0);
+    o.min_observations_per_point = min_obs;
+    BundleAdjuster ba;
+    REQUIRE(ba.configure(o, mesh, K, job.point_capacity(), job.observation_capacity()).ok());
+    BaJob solved = job;
+    REQUIRE(solved.add_point(-1, -1, Vec3::Zero()) < 0);  // full: the copy kept the capacities
+    REQUIRE(ba.solve(&solved));
+    int moved = 0;
+    for (int s = 0; s < kSingle; ++s)
+      moved += solved.point(w.job.point_count + s) != job.point(w.job.point_count + s) ? 1 : 0;
+    MESSAGE("min " << min_obs << " observations/point: " << solved.summary.points_skipped << " skipped, "
+                   << solved.summary.observations << " observations, " << moved << " single-view points moved");
+    if (min_obs == 2) {
+      CHECK(solved.summary.points_skipped == kSingle);
+      CHECK(solved.summary.observations == w.job.observation_count);
+      CHECK(moved == 0);
+    } else {
+      CHECK(solved.summary.points_skipped == 0);
+      CHECK(solved.summary.observations == w.job.observation_count + kSingle);
+      CHECK(moved == kSingle);
+    }
+    // The window itself comes back either way.
+    double rot = 0;
+    int free = 0;
+    for (int k = 0; k < solved.keyframe_count; ++k) {
+      if (solved.keyframes[static_cast<std::size_t>(k)].fixed) continue;
+      rot += pose_delta(w.T_true[static_cast<std::size_t>(k)], solved.pose(k)).angle_deg;
+      ++free;
+    }
+    CHECK(rot / free < 0.2 * spec.pose_rot_deg);
+  }
+  BundleAdjusterOptions bad = options(100.0);
+  bad.min_observations_per_point = 0;
+  BundleAdjuster ba;
+  CHECK_FALSE(ba.configure(bad, mesh, K, job.point_capacity(), job.observation_capacity()).ok());
+}
