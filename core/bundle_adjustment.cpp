@@ -146,7 +146,7 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
       !(options.relative_gradient_tolerance < 1) || options.max_observations_per_point > kMaxObservationsPerPointCap ||
       options.max_fixed_observations_per_point < 0 ||
       options.max_fixed_observations_per_point > kMaxObservationsPerPointCap || options.min_observations_per_point < 1 ||
-      options.min_observations_per_point > 255)
+      options.min_observations_per_point > 255 || !(options.plane_reuse_mm >= 0))
     return make_error("bundle adjustment: options out of range (w_shape >= 0, thresholds and limits > 0)");
   if (!pinhole_is_usable(K)) return make_error("bundle adjustment: the pinhole is not usable");
   if (max_points < 1 || max_points > kMaxMapPoints || max_observations < 1)
@@ -165,6 +165,7 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   impl_->pose_caches = std::make_unique<PoseCache[]>(static_cast<std::size_t>(kMaxKeyframes));
   impl_->deltas = std::make_unique<double[]>(static_cast<std::size_t>(kMaxKeyframes) * 6);
   planes_.assign(static_cast<std::size_t>(max_points), ShapePlane{});
+  plane_cache_.assign(static_cast<std::size_t>(max_points), CachedPlane{});
   for (int i = 0; i < max_points; ++i) {
     impl_->shape_costs[static_cast<std::size_t>(i)].set(&surface_, options.w_shape);
     impl_->plane_costs[static_cast<std::size_t>(i)].set(&planes_[static_cast<std::size_t>(i)], options.w_shape);
@@ -323,10 +324,33 @@ void BundleAdjuster::add_shape_residuals(BaJob* job) {
     double* f = job->points[is].p_model;
     if (options_.exact_shape) {
       problem.AddResidualBlock(&impl_->shape_costs[is], impl_->shape_loss.get(), f);
-    } else if (shape_plane(surface_, job->point(i), &planes_[is])) {
+    } else if (plane_for(job->points[is], &planes_[is], &job->summary.plane_queries)) {
       problem.AddResidualBlock(&impl_->plane_costs[is], impl_->shape_loss.get(), f);
     }
   }
+}
+
+// The tangent plane at p's start value: kept from an earlier solve while p
+// stayed near where it was taken (tracker windows overlap: most points come
+// back unchanged or moved by BA a fraction of a mm), else one query.
+bool BundleAdjuster::plane_for(const BaPoint& p, ShapePlane* plane, int* queries) {
+  const Vec3 f(p.p_model[0], p.p_model[1], p.p_model[2]);
+  const bool cacheable = options_.plane_reuse_mm > 0 && p.id >= 0 && p.id < static_cast<int>(plane_cache_.size());
+  if (cacheable) {
+    const CachedPlane& c = plane_cache_[static_cast<std::size_t>(p.id)];
+    if (c.valid && c.created_frame == p.created_frame && (c.at - f).norm() <= options_.plane_reuse_mm) {
+      *plane = c.plane;
+      return true;
+    }
+  }
+  ++*queries;
+  if (!shape_plane(surface_, f, plane)) return false;
+  if (cacheable) plane_cache_[static_cast<std::size_t>(p.id)] = CachedPlane{true, p.created_frame, f, *plane};
+  return true;
+}
+
+void BundleAdjuster::forget_planes() {
+  for (CachedPlane& c : plane_cache_) c.valid = false;
 }
 
 // Points first (eliminated), poses second: the Schur ordering Ceres would

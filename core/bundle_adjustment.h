@@ -49,6 +49,10 @@ struct BundleAdjusterOptions {
                                              // observations from fixed keyframes per point
                                              // (<= kMaxObservationsPerPointCap): a tracker window
                                              // pulls in every older keyframe seeing its points
+  double plane_reuse_mm = 0.2;  // a point's tangent plane from an earlier solve is reused while the
+                                // point (same map slot and stamp) stays within this distance of where
+                                // the plane was taken (curvature error <= d^2 / 2R: ~4 um at R = 5 mm);
+                                // 0: one closest-point query per point and solve
   int surface_distance_samples = 128;  // summary.mean_surface_distance_mm over at most this
                                        // many evenly spaced points (0: all); one exact
                                        // closest-point query each (~1.6 us)
@@ -72,6 +76,10 @@ class BundleAdjuster {
   // on an invalid job or a failed solve: the job's values are then not to
   // be applied.
   bool solve(BaJob* job, int max_iterations = 0, double max_time_s = 0);
+
+  // Drops the tangent planes kept from earlier solves (the bench: every
+  // solve pays its closest-point queries).
+  void forget_planes();
 
   const ClosestPointIndex& surface() const { return surface_; }
   const BundleAdjusterOptions& options() const { return options_; }
@@ -100,6 +108,16 @@ class BundleAdjuster {
   std::vector<std::int32_t> newest_frames_;   // per job point: max_observations_per_point newest frames, descending
   std::vector<std::int32_t> newest_fixed_frames_;  // the same over fixed keyframes, max_fixed_observations_per_point
   std::vector<ShapePlane> planes_;            // per job point: tangent plane at the start value
+  // Per map point slot (BaPoint::id < max_points): the plane, where it was
+  // taken and the point's stamp; sized in configure().
+  struct CachedPlane {
+    bool valid = false;
+    std::int32_t created_frame = -1;
+    Vec3 at = Vec3::Zero();
+    ShapePlane plane;
+  };
+  std::vector<CachedPlane> plane_cache_;
+  bool plane_for(const BaPoint& p, ShapePlane* plane, int* queries);
   int max_points_ = 0, max_observations_ = 0;
   bool configured_ = false;
 };

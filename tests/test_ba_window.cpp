@@ -296,3 +296,41 @@ TEST_CASE("ba window: points seen once are left out unchanged (no pose informati
   BundleAdjuster ba;
   CHECK_FALSE(ba.configure(bad, mesh, K, job.point_capacity(), job.observation_capacity()).ok());
 }
+
+TEST_CASE("ba window: tangent planes are reused across solves while points stay put, re-queried when moved") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BaWindowSpec spec;
+  spec.points = 200;
+  BaWindow w = make_ba_window(mesh, K, spec);
+  BundleAdjuster ba;
+  REQUIRE(ba.configure(options(100.0), mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+  const BaJob pristine = w.job;
+  REQUIRE(ba.solve(&w.job));
+  const int points = w.job.summary.plane_queries;
+  CHECK(points == w.job.point_count);  // every point seen twice or more here
+  const BaJob first = w.job;
+  // The same window again: every plane reused, the same answer bit for bit.
+  w.job = pristine;
+  REQUIRE(ba.solve(&w.job));
+  CHECK(w.job.summary.plane_queries == 0);
+  bool same = true;
+  for (int i = 0; i < w.job.point_count; ++i) same = same && w.job.point(i) == first.point(i);
+  CHECK(same);
+  // Points moved beyond plane_reuse_mm (or re-created in their slot): queried again.
+  w.job = pristine;
+  for (int i = 0; i < w.job.point_count; ++i) {
+    BaPoint& p = w.job.points[static_cast<std::size_t>(i)];
+    if (i % 2 == 0)
+      p.p_model[0] += 2.0 * ba.options().plane_reuse_mm;
+    else
+      p.created_frame += 1;
+  }
+  REQUIRE(ba.solve(&w.job));
+  CHECK(w.job.summary.plane_queries == points);
+  // Forgotten: queried again.
+  w.job = pristine;
+  ba.forget_planes();
+  REQUIRE(ba.solve(&w.job));
+  CHECK(w.job.summary.plane_queries == points);
+}

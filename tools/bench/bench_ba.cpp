@@ -55,6 +55,7 @@ Row bench_window(const Options& opt, const Mesh& liver, double w_shape, int poin
   double iters = 0, err_before = mean_point_error(w), err_after = 0, surface = 0;
   for (int i = 0; i < n; ++i) {
     w.job = pristine;
+    ba.forget_planes();  // a fresh window: every plane queried (the tracker reuses most)
     const std::uint64_t a0 = platform::thread_allocation_count();
     const double t0 = now_ms(), c0 = thread_cpu_ms();
     ba.solve(&w.job);
