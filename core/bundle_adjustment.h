@@ -1,11 +1,15 @@
 // Bounded bundle adjustment of a BaJob (core/ba_job.h) on a ceres::Problem:
 // robust reprojection residuals (Huber on octave-whitened pixels) for every
 // observation, plus the paper's shape residual w_shape * rho(|f - D(f)|)
-// (Huber in mm) for every point, D from ClosestPointIndex. Keyframe poses
-// are 6-dim left deltas around the handed-over pose (core/ba_residuals.h);
-// keyframes flagged fixed are held constant (when a job has none, the oldest
-// keyframe is fixed to remove the gauge freedom left when w_shape = 0). Single-threaded, dense Schur complement (a window
-// has few poses and many points), bounded iterations and solver time.
+// (Huber in mm) for every point, D from ClosestPointIndex (as a tangent
+// plane taken at the start value, reused across solves while the point
+// stays put). Points seen fewer than twice are left out (no pose
+// information). Keyframe poses are 6-dim left deltas around the handed-over
+// pose (core/ba_residuals.h); keyframes flagged fixed are held constant
+// (when a job has none, the oldest keyframe is fixed to remove the gauge
+// freedom left when w_shape = 0). Single-threaded, dense Schur complement (a
+// window has few poses and many points), bounded iterations and solver
+// time, and a stop once the gradient has fallen to a fraction of its start.
 //
 // Memory: the cost-function objects are pooled (sized in configure()) and
 // not owned by the Problem; Ceres itself allocates its Problem, Program and
