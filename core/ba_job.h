@@ -50,6 +50,9 @@ enum class BaKind : std::uint8_t { kWindow, kGlobal };
 struct BaSummary {
   bool usable = false;         // solved, finite: the tracker may apply it
   int keyframes = 0, fixed_keyframes = 0, points = 0, observations = 0;
+  int fixed_observations = 0;  // of observations: from fixed keyframes
+  int plane_queries = 0;       // closest-point queries for tangent planes (the rest reused)
+  int points_skipped = 0;      // observed, but fewer times than min_observations_per_point: left unchanged
   int iterations = 0;
   double initial_cost = 0, final_cost = 0;
   double solver_ms = 0;        // Ceres' own measure of the solve

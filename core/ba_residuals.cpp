@@ -2,74 +2,54 @@
 
 #include <cmath>
 
-#include "core/ba_job.h"
 #include "core/reprojection.h"
 
 namespace st {
 
 namespace {
 
-// d q' / d omega at omega = 0 for q' = q(omega) * q (4 x 3, rows x y z w):
-// 0.5 * [w I - hat(v); -v^T]. Its columns are orthogonal with norm 0.5.
-Eigen::Matrix<double, 4, 3> quaternion_left_jacobian(const double* q) {
-  const Vec3 v(q[0], q[1], q[2]);
-  const double w = q[3];
-  Eigen::Matrix<double, 4, 3> A;
-  A.topRows<3>() = 0.5 * (w * Mat3::Identity() - hat(v));
-  A.row(3) = -0.5 * v.transpose();
+// ad(xi) for xi = [omega; v] acting on left perturbations: [hat(omega) 0; hat(v) hat(omega)].
+Mat6 se3_ad(const Vec6& xi) {
+  Mat6 A = Mat6::Zero();
+  const Mat3 W = hat(xi.head<3>());
+  A.block<3, 3>(0, 0) = W;
+  A.block<3, 3>(3, 3) = W;
+  A.block<3, 3>(3, 0) = hat(xi.tail<3>());
   return A;
 }
 
 }  // namespace
 
-bool se3_plus(const double* x, const double* delta, double* x_plus_delta) {
-  Vec6 d;
-  for (int k = 0; k < 6; ++k) d[k] = delta[k];
-  const SE3 T = SE3::exp(d) * pose_from_params(x);
-  if (!T.all_finite()) return false;
-  pose_to_params(T, x_plus_delta);
-  // Keep the hemisphere of x: a sign flip is the same rotation but would
-  // make finite differences of the ambient vector jump.
-  const double dot = x[0] * x_plus_delta[0] + x[1] * x_plus_delta[1] + x[2] * x_plus_delta[2] + x[3] * x_plus_delta[3];
-  if (dot < 0)
-    for (int k = 0; k < 4; ++k) x_plus_delta[k] = -x_plus_delta[k];
-  return true;
-}
-
-bool se3_minus(const double* y, const double* x, double* y_minus_x) {
-  const Vec6 d = (pose_from_params(y) * pose_from_params(x).inverse()).log();
-  for (int k = 0; k < 6; ++k) y_minus_x[k] = d[k];
-  return d.allFinite();
-}
-
-Mat76 se3_plus_jacobian(const double* x) {
-  // q' = q(omega) q; t' = exp(omega) t + v: dt'/domega = -hat(t), dt'/dv = I.
-  Mat76 J = Mat76::Zero();
-  J.block<4, 3>(0, 0) = quaternion_left_jacobian(x);
-  J.block<3, 3>(4, 0) = -hat(Vec3(x[4], x[5], x[6]));
-  J.block<3, 3>(4, 3) = Mat3::Identity();
+Mat6 se3_left_jacobian(const Vec6& xi) {
+  const Mat6 A = se3_ad(xi);
+  Mat6 J = Mat6::Identity(), term = Mat6::Identity();
+  // term_n = A^n / (n+1)!; stop when it no longer changes J in double.
+  for (int n = 1; n < 64; ++n) {
+    term = (A * term) / static_cast<double>(n + 1);
+    J += term;
+    if (term.cwiseAbs().maxCoeff() <= 1e-17 * J.cwiseAbs().maxCoeff()) break;
+  }
   return J;
 }
 
-Mat67 se3_minus_jacobian(const double* x) {
-  // omega = 4 A^T dq (A^T A = I / 4 for a unit quaternion), v = dt + hat(t) omega.
-  const Eigen::Matrix<double, 3, 4> Ainv = 4.0 * quaternion_left_jacobian(x).transpose();
-  Mat67 M = Mat67::Zero();
-  M.block<3, 4>(0, 0) = Ainv;
-  M.block<3, 4>(3, 0) = hat(Vec3(x[4], x[5], x[6])) * Ainv;
-  M.block<3, 3>(3, 4) = Mat3::Identity();
-  return M;
-}
-
-void pose_linearization(const double* x, PoseLinearization* out) {
-  out->T_camera_model = pose_from_params(x);
-  out->minus_jacobian = se3_minus_jacobian(x);
+void pose_linearization(const SE3& T0_camera_model, const double* delta, PoseLinearization* out) {
+  Vec6 d;
+  for (int k = 0; k < 6; ++k) d[k] = delta[k];
+  out->at_origin = d.isZero(0.0);
+  if (out->at_origin) {
+    out->T_camera_model = T0_camera_model;
+    out->left_jacobian.setIdentity();
+    return;
+  }
+  out->T_camera_model = SE3::exp(d) * T0_camera_model;
+  out->left_jacobian = se3_left_jacobian(d);
 }
 
 bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info, double min_depth_mm,
-                       const double* x, const double* f, double* r, double* J_pose, double* J_point) {
+                       const SE3& T0_camera_model, const double* delta, const double* f, double* r, double* J_pose,
+                       double* J_point) {
   PoseLinearization pose;
-  pose_linearization(x, &pose);
+  pose_linearization(T0_camera_model, delta, &pose);
   return reprojection_cost(K, px_ideal, sqrt_info, min_depth_mm, pose, f, r, J_pose, J_point);
 }
 
@@ -84,8 +64,11 @@ bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info,
   r[0] = sqrt_info * e[0];
   r[1] = sqrt_info * e[1];
   if (J_pose) {
-    Eigen::Map<Eigen::Matrix<double, 2, 7, Eigen::RowMajor>> Jp(J_pose);
-    Jp.noalias() = (sqrt_info * J) * pose.minus_jacobian;
+    Eigen::Map<Mat26r> Jp(J_pose);
+    if (pose.at_origin)
+      Jp = sqrt_info * J;
+    else
+      Jp.noalias() = (sqrt_info * J) * pose.left_jacobian;
   }
   if (J_point) {
     // d r / d f = d project / d p_camera * R; the v columns of the left

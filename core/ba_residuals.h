@@ -4,13 +4,13 @@
 // Ceres' headers bring glog's CHECK macros, which would clash with users'
 // own, e.g. doctest's).
 //
-// Pose block: T_camera_model as [qx qy qz qw tx ty tz] (core/ba_job.h).
-// Tangent [omega (rad); v (mm)] applied on the left, T <- exp(delta) * T,
-// as everywhere in the project (se3.h). The cost functions know the
-// left-perturbation Jacobian J (k x 6) in closed form (core/reprojection.h)
-// and report J * se3_minus_jacobian(x) as the ambient (k x 7) Jacobian:
-// Ceres multiplies that by se3_plus_jacobian(x) and gets back exactly J,
-// because MinusJacobian * PlusJacobian = I.
+// Pose block: a 6-vector delta = [omega (rad); v (mm)] around the pose T0
+// handed over in the job (T_camera_model, core/ba_job.h), the pose being
+// exp(delta) * T0 (left update, as everywhere in the project: se3.h). A plain
+// Euclidean block, so Ceres needs no manifold: no 2x7 ambient Jacobian per
+// residual and no 7x6 PlusJacobian product (that plumbing cost ~15% of a
+// solve). The Jacobian in delta is the left-perturbation Jacobian at
+// exp(delta) * T0 (core/reprojection.h) times se3_left_jacobian(delta).
 //
 // Reprojection: sqrt(info) * (project(T * f) - q), info = 1/sigma^2 of the
 // keypoint's octave, so one Huber threshold (on whitened pixels) serves
@@ -42,30 +42,31 @@
 
 namespace st {
 
-using Mat67 = Eigen::Matrix<double, 6, 7, Eigen::RowMajor>;
-using Mat76 = Eigen::Matrix<double, 7, 6, Eigen::RowMajor>;
+using Mat26r = Eigen::Matrix<double, 2, 6, Eigen::RowMajor>;
 
-// x_plus_delta = exp(delta) * x (quaternion kept in x's hemisphere).
-bool se3_plus(const double* x, const double* delta, double* x_plus_delta);
-// y_minus_x = log(y * x^-1).
-bool se3_minus(const double* y, const double* x, double* y_minus_x);
-Mat76 se3_plus_jacobian(const double* x);   // d plus / d delta at delta = 0
-Mat67 se3_minus_jacobian(const double* x);  // a left inverse of se3_plus_jacobian
+// Left Jacobian of the SE3 exponential: exp(xi + d) = exp(Jl(xi) d) exp(xi)
+// to first order in d; Jl(0) = I. Series sum ad(xi)^n / (n+1)! (it
+// converges for every xi; BA's deltas are a few mrad, so a handful of terms).
+Mat6 se3_left_jacobian(const Vec6& xi);
 
-// What every residual of one pose block needs from its 7 parameters: the
-// pose and se3_minus_jacobian. BA computes it once per pose and evaluation
-// (core/bundle_adjustment.cpp) instead of once per residual.
+// What every residual of one pose block needs from its 6 parameters (the
+// delta) and the block's linearization point T0 (the pose handed over):
+// T = exp(delta) * T0 and Jl(delta). BA computes it once per pose and
+// evaluation (core/bundle_adjustment.cpp) instead of once per residual.
 struct PoseLinearization {
   SE3 T_camera_model;
-  Mat67 minus_jacobian = Mat67::Zero();
+  Mat6 left_jacobian = Mat6::Identity();
+  bool at_origin = true;  // delta == 0: left_jacobian is I, the product is skipped
 };
-void pose_linearization(const double* x, PoseLinearization* out);
+void pose_linearization(const SE3& T0_camera_model, const double* delta, PoseLinearization* out);
 
-// Whitened reprojection residual r (2) of point f (3) in pose x (7), with
-// the ambient Jacobians J_pose (2 x 7, row-major) and J_point (2 x 3), each
-// optional. False when the point is not in front (depth <= min_depth_mm).
+// Whitened reprojection residual r (2) of point f (3) in the pose
+// exp(delta) * T0, with the Jacobians J_pose (2 x 6 in delta, row-major) and
+// J_point (2 x 3), each optional. False when the point is not in front
+// (depth <= min_depth_mm).
 bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info, double min_depth_mm,
-                       const double* x, const double* f, double* r, double* J_pose, double* J_point);
+                       const SE3& T0_camera_model, const double* delta, const double* f, double* r, double* J_pose,
+                       double* J_point);
 // The same with the pose block's linearization already computed.
 bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info, double min_depth_mm,
                        const PoseLinearization& pose, const double* f, double* r, double* J_pose, double* J_point);

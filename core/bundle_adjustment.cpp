@@ -14,52 +14,35 @@ namespace st {
 
 namespace {
 
-class Se3LeftManifold final : public ceres::Manifold {
- public:
-  int AmbientSize() const override { return 7; }
-  int TangentSize() const override { return 6; }
-  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
-    return se3_plus(x, delta, x_plus_delta);
-  }
-  bool PlusJacobian(const double* x, double* jacobian) const override {
-    Eigen::Map<Mat76> J(jacobian);
-    J = se3_plus_jacobian(x);
-    return true;
-  }
-  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
-    return se3_minus(y, x, y_minus_x);
-  }
-  bool MinusJacobian(const double* x, double* jacobian) const override {
-    Eigen::Map<Mat67> J(jacobian);
-    J = se3_minus_jacobian(x);
-    return true;
-  }
-};
-
 // The linearization of one pose block, recomputed only when the block's
-// values change: Ceres evaluates all ~1000 residuals of a pose at the same
-// values, so the quaternion-to-matrix and minus-Jacobian work is done once
+// delta changes: Ceres evaluates all ~1000 residuals of a pose at the same
+// values, so exp(delta) * T0 and the left Jacobian of exp are computed once
 // per pose and evaluation instead of once per residual. Mutable from the
 // const Evaluate(): safe because the solver runs single-threaded.
 class PoseCache {
  public:
-  void reset() { x_[0] = std::numeric_limits<double>::quiet_NaN(); }  // NaN != anything: recompute
-  const PoseLinearization& at(const double* x) const {
+  void reset(const SE3& T0_camera_model) {
+    T0_ = T0_camera_model;
+    delta_[0] = std::numeric_limits<double>::quiet_NaN();  // NaN != anything: recompute
+  }
+  const PoseLinearization& at(const double* delta) const {
     bool same = true;
-    for (int k = 0; k < kPoseParams; ++k) same = same && x_[k] == x[k];
+    for (int k = 0; k < 6; ++k) same = same && delta_[k] == delta[k];
     if (!same) {
-      for (int k = 0; k < kPoseParams; ++k) x_[k] = x[k];
-      pose_linearization(x, &lin_);
+      for (int k = 0; k < 6; ++k) delta_[k] = delta[k];
+      pose_linearization(T0_, delta, &lin_);
     }
     return lin_;
   }
+  const SE3& T0() const { return T0_; }
 
  private:
-  mutable double x_[kPoseParams] = {std::numeric_limits<double>::quiet_NaN()};
+  SE3 T0_;
+  mutable double delta_[6] = {std::numeric_limits<double>::quiet_NaN()};
   mutable PoseLinearization lin_;
 };
 
-class ReprojectionCost final : public ceres::SizedCostFunction<2, 7, 3> {
+class ReprojectionCost final : public ceres::SizedCostFunction<2, 6, 3> {
  public:
   void set(const Pinhole& K, const Vec2& px_ideal, double info, double min_depth_mm, const PoseCache* pose) {
     pose_ = pose;
@@ -111,10 +94,31 @@ class PlaneCost final : public ceres::SizedCostFunction<2, 3> {
   double sqrt_w_ = 0;
 };
 
+// Stops the solve once the gradient (max norm) has fallen below a fraction
+// of its value at the start. Ceres' own tests are absolute (gradient) or
+// need the next step solved and evaluated (function, parameter tolerance):
+// on the bench window the last of 3 steps changed the cost by 2e-7 and cost
+// a linear solve and an evaluation (~20% of the solve). Thread: the solver's.
+class RelativeGradientStop final : public ceres::IterationCallback {
+ public:
+  explicit RelativeGradientStop(double tolerance) : tolerance_(tolerance) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    if (s.iteration == 0) {
+      start_norm_ = s.gradient_max_norm;
+      return ceres::SOLVER_CONTINUE;
+    }
+    if (s.step_is_successful && s.gradient_max_norm <= tolerance_ * start_norm_)
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  double tolerance_ = 0, start_norm_ = 0;
+};
+
 }  // namespace
 
 struct BundleAdjuster::Impl {
-  Se3LeftManifold manifold;
   std::unique_ptr<ceres::LossFunction> reprojection_loss, shape_loss;
   // Cost functions are not copyable: fixed arrays sized in configure(), not
   // owned by the per-solve Problem.
@@ -122,6 +126,8 @@ struct BundleAdjuster::Impl {
   std::unique_ptr<ShapeCost[]> shape_costs;
   std::unique_ptr<PlaneCost[]> plane_costs;
   std::unique_ptr<PoseCache[]> pose_caches;  // per job keyframe, kMaxKeyframes
+  std::unique_ptr<double[]> deltas;          // 6 per job keyframe: the pose blocks Ceres solves
+  std::unique_ptr<RelativeGradientStop> gradient_stop;
   ceres::Problem::Options problem_options;
   ceres::Solver::Options solver_options;
   ceres::Problem* problem = nullptr;  // during solve() only
@@ -136,7 +142,11 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   if (!(options.w_shape >= 0) || !std::isfinite(options.w_shape) || !(options.shape_huber_mm > 0) ||
       !(options.reprojection_huber > 0) || options.max_iterations < 1 || !(options.max_time_s > 0) ||
       !(options.min_depth_mm > 0) || !(options.max_point_shift_mm > 0) || options.surface_distance_samples < 0 ||
-      options.max_observations_per_point < 0 || options.max_observations_per_point > kMaxObservationsPerPointCap)
+      options.max_observations_per_point < 0 || !(options.relative_gradient_tolerance >= 0) ||
+      !(options.relative_gradient_tolerance < 1) || options.max_observations_per_point > kMaxObservationsPerPointCap ||
+      options.max_fixed_observations_per_point < 0 ||
+      options.max_fixed_observations_per_point > kMaxObservationsPerPointCap || options.min_observations_per_point < 1 ||
+      options.min_observations_per_point > 255 || !(options.plane_reuse_mm >= 0))
     return make_error("bundle adjustment: options out of range (w_shape >= 0, thresholds and limits > 0)");
   if (!pinhole_is_usable(K)) return make_error("bundle adjustment: the pinhole is not usable");
   if (max_points < 1 || max_points > kMaxMapPoints || max_observations < 1)
@@ -153,7 +163,9 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   impl_->shape_costs = std::make_unique<ShapeCost[]>(static_cast<std::size_t>(max_points));
   impl_->plane_costs = std::make_unique<PlaneCost[]>(static_cast<std::size_t>(max_points));
   impl_->pose_caches = std::make_unique<PoseCache[]>(static_cast<std::size_t>(kMaxKeyframes));
+  impl_->deltas = std::make_unique<double[]>(static_cast<std::size_t>(kMaxKeyframes) * 6);
   planes_.assign(static_cast<std::size_t>(max_points), ShapePlane{});
+  plane_cache_.assign(static_cast<std::size_t>(max_points), CachedPlane{});
   for (int i = 0; i < max_points; ++i) {
     impl_->shape_costs[static_cast<std::size_t>(i)].set(&surface_, options.w_shape);
     impl_->plane_costs[static_cast<std::size_t>(i)].set(&planes_[static_cast<std::size_t>(i)], options.w_shape);
@@ -162,10 +174,11 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   max_observations_ = max_observations;
   point_observed_.assign(static_cast<std::size_t>(max_points), 0);
   newest_frames_.assign(static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_observations_per_point)), -1);
+  newest_fixed_frames_.assign(
+      static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_fixed_observations_per_point)), -1);
   ceres::Problem::Options& po = impl_->problem_options;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.disable_all_safety_checks = true;  // valid() checked the job; saves ~1/3 of the build
   ceres::Solver::Options& so = impl_->solver_options;
   so.linear_solver_type = ceres::DENSE_SCHUR;
@@ -175,6 +188,10 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   so.minimizer_progress_to_stdout = false;
   so.max_num_iterations = options.max_iterations;
   so.max_solver_time_in_seconds = options.max_time_s;
+  if (options.relative_gradient_tolerance > 0) {
+    impl_->gradient_stop = std::make_unique<RelativeGradientStop>(options.relative_gradient_tolerance);
+    so.callbacks.push_back(impl_->gradient_stop.get());
+  }
   configured_ = true;
   return Status::Ok();
 }
@@ -204,56 +221,99 @@ int BundleAdjuster::build(BaJob* job) {
   ceres::Problem& problem = *impl_->problem;
   int fixed = 0, oldest = 0;
   for (int i = 0; i < job->keyframe_count; ++i) {
-    BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
-    impl_->pose_caches[static_cast<std::size_t>(i)].reset();
-    problem.AddParameterBlock(k.pose, kPoseParams, &impl_->manifold);
+    const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
+    impl_->pose_caches[static_cast<std::size_t>(i)].reset(job->pose(i));
+    double* delta = pose_delta_block(i);
+    std::fill(delta, delta + 6, 0.0);
+    problem.AddParameterBlock(delta, 6);
     if (k.fixed) {
-      problem.SetParameterBlockConstant(k.pose);
+      problem.SetParameterBlockConstant(delta);
       ++fixed;
     }
     if (k.frame < job->keyframes[static_cast<std::size_t>(oldest)].frame) oldest = i;
   }
   if (fixed == 0) {  // gauge: hold the oldest keyframe
-    problem.SetParameterBlockConstant(job->keyframes[static_cast<std::size_t>(oldest)].pose);
+    problem.SetParameterBlockConstant(pose_delta_block(oldest));
     fixed = 1;
   }
   job->summary.fixed_keyframes = fixed;
-  for (int i = 0; i < job->point_count; ++i) point_observed_[static_cast<std::size_t>(i)] = 0;
-  const int cap = options_.max_observations_per_point;
-  if (cap > 0) newest_frames_per_point(*job);
+  if (options_.max_observations_per_point > 0)
+    newest_frames_per_point(*job, options_.max_observations_per_point, false, &newest_frames_);
+  if (options_.max_fixed_observations_per_point > 0)
+    newest_frames_per_point(*job, options_.max_fixed_observations_per_point, true, &newest_fixed_frames_);
+  select_points(job);
   int used = 0;
   for (int i = 0; i < job->observation_count; ++i) {
     const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
-    BaKeyframe& k = job->keyframes[static_cast<std::size_t>(o.keyframe)];
-    // Keyframe frames are distinct: at most cap observations pass.
-    if (cap > 0 && k.frame < newest_frames_[static_cast<std::size_t>(o.point) * static_cast<std::size_t>(cap) +
-                                            static_cast<std::size_t>(cap - 1)])
-      continue;
-    BaPoint& p = job->points[static_cast<std::size_t>(o.point)];
-    const Vec3 p_camera = pose_from_params(k.pose) * job->point(o.point);
-    if (!(p_camera.z() > options_.min_depth_mm)) continue;  // Ceres needs a valid start
+    if (!point_observed_[static_cast<std::size_t>(o.point)] || !usable_observation(*job, o)) continue;
     ReprojectionCost& c = impl_->reprojection_costs[static_cast<std::size_t>(used++)];
     c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm,
           &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)]);
-    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), k.pose, p.p_model);
-    point_observed_[static_cast<std::size_t>(o.point)] = 1;
+    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), pose_delta_block(o.keyframe),
+                             job->points[static_cast<std::size_t>(o.point)].p_model);
+    if (job->keyframes[static_cast<std::size_t>(o.keyframe)].fixed) ++job->summary.fixed_observations;
   }
   if (options_.w_shape > 0) add_shape_residuals(job);
   return used;
 }
 
-// Per point, the frames of its cap newest observing keyframes (descending,
-// -1 padded) by insertion into a fixed row: allocates nothing.
-void BundleAdjuster::newest_frames_per_point(const BaJob& job) {
-  const auto cap = static_cast<std::size_t>(options_.max_observations_per_point);
-  std::fill(newest_frames_.begin(), newest_frames_.begin() + static_cast<std::ptrdiff_t>(job.point_count * cap), -1);
+// point_observed_[i] = 1 for the points that join the problem: at least
+// min_observations_per_point usable observations. With one view a point's 2
+// reprojection rows (+1 shape row) are met exactly by its own 3 unknowns for
+// any pose, so it tells the poses nothing (and a point made from one
+// keyframe's ray and the mesh depth already sits at that optimum); tracker
+// windows hold thousands of such points (half the blocks of a solve).
+void BundleAdjuster::select_points(BaJob* job) {
+  for (int i = 0; i < job->point_count; ++i) point_observed_[static_cast<std::size_t>(i)] = 0;
+  for (int i = 0; i < job->observation_count; ++i) {  // saturating counts
+    const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
+    std::uint8_t& n = point_observed_[static_cast<std::size_t>(o.point)];
+    if (n < 255 && usable_observation(*job, o)) ++n;
+  }
+  for (int i = 0; i < job->point_count; ++i) {
+    std::uint8_t& n = point_observed_[static_cast<std::size_t>(i)];
+    if (n > 0 && n < options_.min_observations_per_point) ++job->summary.points_skipped;
+    n = n >= options_.min_observations_per_point ? 1 : 0;
+  }
+}
+
+// Per point, the frames of its cap newest observing keyframes (only the
+// fixed ones when fixed_only; descending, -1 padded) by insertion into a
+// fixed row: allocates nothing.
+void BundleAdjuster::newest_frames_per_point(const BaJob& job, int cap, bool fixed_only,
+                                             std::vector<std::int32_t>* rows) const {
+  const auto n = static_cast<std::size_t>(cap);
+  std::fill(rows->begin(), rows->begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(job.point_count) * n), -1);
   for (int i = 0; i < job.observation_count; ++i) {
     const BaObservation& o = job.observations[static_cast<std::size_t>(i)];
-    std::int32_t frame = job.keyframes[static_cast<std::size_t>(o.keyframe)].frame;
-    std::int32_t* row = &newest_frames_[static_cast<std::size_t>(o.point) * cap];
-    for (std::size_t j = 0; j < cap; ++j)
+    const BaKeyframe& k = job.keyframes[static_cast<std::size_t>(o.keyframe)];
+    if (fixed_only && !k.fixed) continue;
+    std::int32_t frame = k.frame;
+    std::int32_t* row = &(*rows)[static_cast<std::size_t>(o.point) * n];
+    for (std::size_t j = 0; j < n; ++j)
       if (frame > row[j]) std::swap(frame, row[j]);
   }
+}
+
+// Passes the caps and is in front of its keyframe (Ceres needs a valid start).
+bool BundleAdjuster::usable_observation(const BaJob& job, const BaObservation& o) const {
+  if (!keep_observation(job, o)) return false;
+  const Vec3 p_camera = impl_->pose_caches[static_cast<std::size_t>(o.keyframe)].T0() * job.point(o.point);
+  return p_camera.z() > options_.min_depth_mm;
+}
+
+// The observation caps (the rows hold the newest frames; keyframe frames
+// are distinct, so at most cap observations of a point pass each).
+bool BundleAdjuster::keep_observation(const BaJob& job, const BaObservation& o) const {
+  const BaKeyframe& k = job.keyframes[static_cast<std::size_t>(o.keyframe)];
+  const auto point = static_cast<std::size_t>(o.point);
+  const int cap = options_.max_observations_per_point, cap_fixed = options_.max_fixed_observations_per_point;
+  if (cap > 0 && k.frame < newest_frames_[point * static_cast<std::size_t>(cap) + static_cast<std::size_t>(cap - 1)])
+    return false;
+  if (k.fixed && cap_fixed > 0 &&
+      k.frame < newest_fixed_frames_[point * static_cast<std::size_t>(cap_fixed) + static_cast<std::size_t>(cap_fixed - 1)])
+    return false;
+  return true;
 }
 
 void BundleAdjuster::add_shape_residuals(BaJob* job) {
@@ -264,21 +324,45 @@ void BundleAdjuster::add_shape_residuals(BaJob* job) {
     double* f = job->points[is].p_model;
     if (options_.exact_shape) {
       problem.AddResidualBlock(&impl_->shape_costs[is], impl_->shape_loss.get(), f);
-    } else if (shape_plane(surface_, job->point(i), &planes_[is])) {
+    } else if (plane_for(job->points[is], &planes_[is], &job->summary.plane_queries)) {
       problem.AddResidualBlock(&impl_->plane_costs[is], impl_->shape_loss.get(), f);
     }
   }
+}
+
+// The tangent plane at p's start value: kept from an earlier solve while p
+// stayed near where it was taken (tracker windows overlap: most points come
+// back unchanged or moved by BA a fraction of a mm), else one query.
+bool BundleAdjuster::plane_for(const BaPoint& p, ShapePlane* plane, int* queries) {
+  const Vec3 f(p.p_model[0], p.p_model[1], p.p_model[2]);
+  const bool cacheable = options_.plane_reuse_mm > 0 && p.id >= 0 && p.id < static_cast<int>(plane_cache_.size());
+  if (cacheable) {
+    const CachedPlane& c = plane_cache_[static_cast<std::size_t>(p.id)];
+    if (c.valid && c.created_frame == p.created_frame && (c.at - f).norm() <= options_.plane_reuse_mm) {
+      *plane = c.plane;
+      return true;
+    }
+  }
+  ++*queries;
+  if (!shape_plane(surface_, f, plane)) return false;
+  if (cacheable) plane_cache_[static_cast<std::size_t>(p.id)] = CachedPlane{true, p.created_frame, f, *plane};
+  return true;
+}
+
+void BundleAdjuster::forget_planes() {
+  for (CachedPlane& c : plane_cache_) c.valid = false;
 }
 
 // Points first (eliminated), poses second: the Schur ordering Ceres would
 // find, given instead of searched for (its independent-set search builds a
 // graph of the whole problem on every solve).
 static std::shared_ptr<ceres::ParameterBlockOrdering> schur_ordering(BaJob* job,
-                                                                     const std::vector<std::uint8_t>& point_observed) {
+                                                                     const std::vector<std::uint8_t>& point_observed,
+                                                                     double* deltas) {
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
   for (int i = 0; i < job->point_count; ++i)
     if (point_observed[static_cast<std::size_t>(i)]) ordering->AddElementToGroup(job->points[static_cast<std::size_t>(i)].p_model, 0);
-  for (int i = 0; i < job->keyframe_count; ++i) ordering->AddElementToGroup(job->keyframes[static_cast<std::size_t>(i)].pose, 1);
+  for (int i = 0; i < job->keyframe_count; ++i) ordering->AddElementToGroup(deltas + 6 * i, 1);
   return ordering;
 }
 
@@ -294,14 +378,30 @@ bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
   job->summary.observations = used;
   if (used == 0) return false;
   ceres::Solver::Options so = impl_->solver_options;
-  so.linear_solver_ordering = schur_ordering(job, point_observed_);
+  so.linear_solver_ordering = schur_ordering(job, point_observed_, impl_->deltas.get());
   if (max_iterations > 0) so.max_num_iterations = max_iterations;
   if (max_time_s > 0) so.max_solver_time_in_seconds = max_time_s;
   ceres::Solver::Summary s;
   ceres::Solve(so, &problem, &s);
+  apply_pose_deltas(job);
   finish(job, s.initial_cost, s.final_cost, s.total_time_in_seconds, static_cast<int>(s.iterations.size()),
          s.IsSolutionUsable());
   return job->summary.usable;
+}
+
+double* BundleAdjuster::pose_delta_block(int keyframe) {
+  return &impl_->deltas[static_cast<std::size_t>(keyframe) * 6];
+}
+
+// The solved poses exp(delta) * T0 back into the job's quaternion blocks.
+void BundleAdjuster::apply_pose_deltas(BaJob* job) {
+  for (int i = 0; i < job->keyframe_count; ++i) {
+    const double* d = pose_delta_block(i);
+    Vec6 delta;
+    for (int k = 0; k < 6; ++k) delta[k] = d[k];
+    if (delta.isZero(0.0)) continue;  // fixed, or not moved: keep the handed-over values bit for bit
+    pose_to_params(SE3::exp(delta) * job->pose(i), job->keyframes[static_cast<std::size_t>(i)].pose);
+  }
 }
 
 // Summary, finiteness, and the per-point shift gate (a point moved too far

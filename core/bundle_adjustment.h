@@ -1,11 +1,15 @@
 // Bounded bundle adjustment of a BaJob (core/ba_job.h) on a ceres::Problem:
 // robust reprojection residuals (Huber on octave-whitened pixels) for every
 // observation, plus the paper's shape residual w_shape * rho(|f - D(f)|)
-// (Huber in mm) for every point, D from ClosestPointIndex. Keyframe poses
-// live on Se3LeftManifold; keyframes flagged fixed are held constant (when a
-// job has none, the oldest keyframe is fixed to remove the gauge freedom
-// left when w_shape = 0). Single-threaded, dense Schur complement (a window
-// has few poses and many points), bounded iterations and solver time.
+// (Huber in mm) for every point, D from ClosestPointIndex (as a tangent
+// plane taken at the start value, reused across solves while the point
+// stays put). Points seen fewer than twice are left out (no pose
+// information). Keyframe poses are 6-dim left deltas around the handed-over
+// pose (core/ba_residuals.h); keyframes flagged fixed are held constant
+// (when a job has none, the oldest keyframe is fixed to remove the gauge
+// freedom left when w_shape = 0). Single-threaded, dense Schur complement (a
+// window has few poses and many points), bounded iterations and solver
+// time, and a stop once the gradient has fallen to a fraction of its start.
 //
 // Memory: the cost-function objects are pooled (sized in configure()) and
 // not owned by the Problem; Ceres itself allocates its Problem, Program and
@@ -34,6 +38,8 @@ struct BundleAdjusterOptions {
                                     // plane at the start value (core/ba_residuals.h)
   double reprojection_huber = 2.447651936;  // on whitened pixels: sqrt(chi2 95%, 2 DoF)
   int max_iterations = 10;
+  double relative_gradient_tolerance = 1e-4;  // stop once max|gradient| fell below this fraction of
+                                              // its start value (0: Ceres' own tests only)
   double max_time_s = 0.05;         // Ceres stops after this much solver time
   double min_depth_mm = 1.0;        // observations at a smaller depth are left out
   double max_point_shift_mm = 10.0; // a point moved farther is marked rejected (the
@@ -41,6 +47,16 @@ struct BundleAdjusterOptions {
   int max_observations_per_point = 0;  // 0: all; else only the newest (keyframe frame)
                                        // this many per point, <= kMaxObservationsPerPointCap:
                                        // bounds the Schur work per point (quadratic in it)
+  int min_observations_per_point = 2;  // points with fewer usable observations are left out
+                                       // (unchanged): one view carries no pose information
+  int max_fixed_observations_per_point = 0;  // 0: all; else only the newest this many
+                                             // observations from fixed keyframes per point
+                                             // (<= kMaxObservationsPerPointCap): a tracker window
+                                             // pulls in every older keyframe seeing its points
+  double plane_reuse_mm = 0.2;  // a point's tangent plane from an earlier solve is reused while the
+                                // point (same map slot and stamp) stays within this distance of where
+                                // the plane was taken (curvature error <= d^2 / 2R: ~4 um at R = 5 mm);
+                                // 0: one closest-point query per point and solve
   int surface_distance_samples = 128;  // summary.mean_surface_distance_mm over at most this
                                        // many evenly spaced points (0: all); one exact
                                        // closest-point query each (~1.6 us)
@@ -65,6 +81,10 @@ class BundleAdjuster {
   // be applied.
   bool solve(BaJob* job, int max_iterations = 0, double max_time_s = 0);
 
+  // Drops the tangent planes kept from earlier solves (the bench: every
+  // solve pays its closest-point queries).
+  void forget_planes();
+
   const ClosestPointIndex& surface() const { return surface_; }
   const BundleAdjusterOptions& options() const { return options_; }
   // Mean distance of the job's points to the mesh (mm) over at most
@@ -75,17 +95,33 @@ class BundleAdjuster {
   struct Impl;  // the Ceres objects (kept out of this header: glog macros)
   bool valid(const BaJob& job) const;
   int build(BaJob* job);
-  void newest_frames_per_point(const BaJob& job);
+  void newest_frames_per_point(const BaJob& job, int cap, bool fixed_only, std::vector<std::int32_t>* rows) const;
+  bool keep_observation(const BaJob& job, const BaObservation& o) const;
+  bool usable_observation(const BaJob& job, const BaObservation& o) const;
+  void select_points(BaJob* job);
   void add_shape_residuals(BaJob* job);
+  double* pose_delta_block(int keyframe);  // Ceres' 6-dim pose block of a job keyframe
+  void apply_pose_deltas(BaJob* job);
   void finish(BaJob* job, double initial_cost, double final_cost, double total_s, int iterations, bool usable);
 
   BundleAdjusterOptions options_;
   Pinhole K_;
   ClosestPointIndex surface_;
   std::unique_ptr<Impl> impl_;
-  std::vector<std::uint8_t> point_observed_;  // per job point: has a reprojection residual
+  std::vector<std::uint8_t> point_observed_;  // per job point: in the problem (a count while building)
   std::vector<std::int32_t> newest_frames_;   // per job point: max_observations_per_point newest frames, descending
+  std::vector<std::int32_t> newest_fixed_frames_;  // the same over fixed keyframes, max_fixed_observations_per_point
   std::vector<ShapePlane> planes_;            // per job point: tangent plane at the start value
+  // Per map point slot (BaPoint::id < max_points): the plane, where it was
+  // taken and the point's stamp; sized in configure().
+  struct CachedPlane {
+    bool valid = false;
+    std::int32_t created_frame = -1;
+    Vec3 at = Vec3::Zero();
+    ShapePlane plane;
+  };
+  std::vector<CachedPlane> plane_cache_;
+  bool plane_for(const BaPoint& p, ShapePlane* plane, int* queries);
   int max_points_ = 0, max_observations_ = 0;
   bool configured_ = false;
 };

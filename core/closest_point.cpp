@@ -54,28 +54,72 @@ Mat3 SurfacePoint::residual_jacobian() const {
 
 namespace {
 
-// Voronoi regions of a non-degenerate triangle in the order vertex a, b,
-// edge ab, vertex c, edge ac, edge bc, face (barycentric tests as in
-// Ericson, Real-Time Collision Detection, 5.1.5, re-derived here).
-SurfacePoint closest_by_region(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& n) {
+// Where the closest point of a non-degenerate triangle lies: vertex v0,
+// edge (v0, v1) at parameter t, or the face at a + u ab + w ac.
+struct TriangleRegion {
+  SurfaceFeature feature = SurfaceFeature::kFace;
+  int v0 = 0, v1 = 0;
+  double t = 0, u = 0, w = 0;
+};
+
+// Voronoi regions in the order vertex a, b, edge ab, vertex c, edge ac,
+// edge bc, face (barycentric tests as in Ericson, Real-Time Collision
+// Detection, 5.1.5, re-derived here). Vertices 0, 1, 2 = a, b, c.
+TriangleRegion triangle_region(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  TriangleRegion r;
   const Vec3 ab = b - a, ac = c - a, ap = p - a;
   const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return at_vertex(p, a);
+  const auto vertex = [&r](int v) {
+    r.feature = SurfaceFeature::kVertex;
+    r.v0 = v;
+    return r;
+  };
+  const auto edge = [&r](int v0, int v1, double t) {
+    r.feature = SurfaceFeature::kEdge;
+    r.v0 = v0;
+    r.v1 = v1;
+    r.t = t;
+    return r;
+  };
+  if (d1 <= 0 && d2 <= 0) return vertex(0);
   const Vec3 bp = p - b;
   const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return at_vertex(p, b);
+  if (d3 >= 0 && d4 <= d3) return vertex(1);
   const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return on_edge(p, a, b, d1 / (d1 - d3));
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return edge(0, 1, d1 / (d1 - d3));
   const Vec3 cp = p - c;
   const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return at_vertex(p, c);
+  if (d6 >= 0 && d5 <= d6) return vertex(2);
   const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return on_edge(p, a, c, d2 / (d2 - d6));
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return edge(0, 2, d2 / (d2 - d6));
   const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return on_edge(p, b, c, (d4 - d3) / ((d4 - d3) + (d5 - d6)));
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return edge(1, 2, (d4 - d3) / ((d4 - d3) + (d5 - d6)));
   const double denom = 1.0 / (va + vb + vc);
+  r.u = vb * denom;
+  r.w = vc * denom;
+  return r;
+}
+
+Vec3 region_point(const TriangleRegion& r, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3* v[3] = {&a, &b, &c};
+  switch (r.feature) {
+    case SurfaceFeature::kVertex: return *v[r.v0];
+    case SurfaceFeature::kEdge: return *v[r.v0] + r.t * (*v[r.v1] - *v[r.v0]);
+    case SurfaceFeature::kFace: break;
+  }
+  return a + (b - a) * r.u + (c - a) * r.w;
+}
+
+SurfacePoint closest_by_region(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& n) {
+  const TriangleRegion r = triangle_region(p, a, b, c);
+  const Vec3* v[3] = {&a, &b, &c};
+  switch (r.feature) {
+    case SurfaceFeature::kVertex: return at_vertex(p, *v[r.v0]);
+    case SurfaceFeature::kEdge: return on_edge(p, *v[r.v0], *v[r.v1], r.t);
+    case SurfaceFeature::kFace: break;
+  }
   SurfacePoint s;
-  s.p_model = a + ab * (vb * denom) + ac * (vc * denom);
+  s.p_model = region_point(r, a, b, c);
   s.distance_mm = (p - s.p_model).norm();
   s.feature = SurfaceFeature::kFace;
   s.axis = n;
@@ -83,6 +127,20 @@ SurfacePoint closest_by_region(const Vec3& p, const Vec3& a, const Vec3& b, cons
 }
 
 }  // namespace
+
+// Squared distance of p to triangle (a, b, c): the search kernel, without the
+// feature, normals and square roots of closest_point_on_triangle (which
+// the search then calls once, for the winner). Same Voronoi regions.
+double triangle_distance2(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a;
+  const Vec3 n = ab.cross(ac);
+  if (!(n.squaredNorm() > 1e-24 * std::max(1.0, ab.squaredNorm() * ac.squaredNorm()))) {
+    const double d = std::min({closest_on_segment(p, a, b).distance_mm, closest_on_segment(p, a, c).distance_mm,
+                               closest_on_segment(p, b, c).distance_mm});
+    return d * d;
+  }
+  return (p - region_point(triangle_region(p, a, b, c), a, b, c)).squaredNorm();
+}
 
 SurfacePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 ab = b - a, ac = c - a;
@@ -214,33 +272,41 @@ Vec3 ClosestPointIndex::corner(int slot, int k) const {
 
 bool ClosestPointIndex::closest(const Vec3& p_model, SurfacePoint* out) const {
   if (nodes_.empty() || !p_model.allFinite()) return false;
-  std::array<std::int32_t, kMaxDepth + 2> stack{};
+  // Each entry keeps its box distance, computed once when pushed.
+  struct Entry {
+    std::int32_t node;
+    double d2;
+  };
+  std::array<Entry, kMaxDepth + 2> stack{};
   int top = 0;
-  stack[static_cast<std::size_t>(top++)] = 0;
+  stack[static_cast<std::size_t>(top++)] = Entry{0, box_distance2(nodes_[0], p_model)};
   double best2 = std::numeric_limits<double>::infinity();
+  int best_slot = -1;
   while (top > 0) {
-    const Node& n = nodes_[static_cast<std::size_t>(stack[static_cast<std::size_t>(--top)])];
-    if (box_distance2(n, p_model) >= best2) continue;
+    const Entry e = stack[static_cast<std::size_t>(--top)];
+    if (e.d2 >= best2) continue;
+    const Node& n = nodes_[static_cast<std::size_t>(e.node)];
     if (n.count > 0) {
       for (int s = n.first; s < n.first + n.count; ++s) {
-        const SurfacePoint q = closest_point_on_triangle(p_model, corner(s, 0), corner(s, 1), corner(s, 2));
-        if (q.distance_mm * q.distance_mm < best2) {
-          best2 = q.distance_mm * q.distance_mm;
-          *out = q;
-          out->triangle = tri_index_[static_cast<std::size_t>(s)];
+        const double d2 = triangle_distance2(p_model, corner(s, 0), corner(s, 1), corner(s, 2));
+        if (d2 < best2) {
+          best2 = d2;
+          best_slot = s;
         }
       }
       continue;
     }
     // Push the farther child first so that the nearer one is searched next.
-    const int self = static_cast<int>(&n - nodes_.data());
-    const int l = self + 1, r = n.first;
-    const double dl = box_distance2(nodes_[static_cast<std::size_t>(l)], p_model);
-    const double dr = box_distance2(nodes_[static_cast<std::size_t>(r)], p_model);
-    stack[static_cast<std::size_t>(top++)] = dl <= dr ? r : l;
-    stack[static_cast<std::size_t>(top++)] = dl <= dr ? l : r;
+    const Entry l{e.node + 1, box_distance2(nodes_[static_cast<std::size_t>(e.node + 1)], p_model)};
+    const Entry r{n.first, box_distance2(nodes_[static_cast<std::size_t>(n.first)], p_model)};
+    stack[static_cast<std::size_t>(top++)] = l.d2 <= r.d2 ? r : l;
+    stack[static_cast<std::size_t>(top++)] = l.d2 <= r.d2 ? l : r;
   }
-  return std::isfinite(best2);
+  if (best_slot < 0) return false;
+  // The full answer (feature, normals) for the winner only.
+  *out = closest_point_on_triangle(p_model, corner(best_slot, 0), corner(best_slot, 1), corner(best_slot, 2));
+  out->triangle = tri_index_[static_cast<std::size_t>(best_slot)];
+  return std::isfinite(out->distance_mm);
 }
 
 std::size_t ClosestPointIndex::memory_bytes() const {

@@ -39,6 +39,8 @@ struct SurfacePoint {
 
 // Exact closest point of p on triangle (a, b, c), with the feature it lies on.
 SurfacePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+// Its squared distance alone (the search kernel: no normals, no roots).
+double triangle_distance2(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
 
 class ClosestPointIndex {
  public:

@@ -19,6 +19,7 @@ Status MappingWorker::configure(const TrackerConfig& config, const Mesh& mesh, c
     return make_error("mapping: " + s.message());
   state_.store(kFree, std::memory_order_release);
   stats_ = MappingStats{};
+  window_observations_ = window_fixed_observations_ = 0;
   solve_ms_.clear();
   configured_ = true;
   return Status::Ok();
@@ -76,6 +77,10 @@ void MappingWorker::solve_one() {
   const std::uint64_t allocs = platform::thread_allocation_count() - allocs0;
   if (allocs > stats_.max_allocations_per_solve) stats_.max_allocations_per_solve = allocs;
   (global ? stats_.global_solves : stats_.window_solves) += 1;
+  if (!global) {
+    window_observations_ += job_.summary.observations;
+    window_fixed_observations_ += job_.summary.fixed_observations;
+  }
   if (!ok) ++stats_.unusable;
   if (ok) stats_.mean_surface_distance_mm = job_.summary.mean_surface_distance_mm;
 }
@@ -85,6 +90,10 @@ MappingStats MappingWorker::stats() const {
   s.solve_median_ms = solve_ms_.quantile_ms(0.5);
   s.solve_p99_ms = solve_ms_.quantile_ms(0.99);
   s.solve_max_ms = solve_ms_.max_ms();
+  if (s.window_solves > 0) {
+    s.mean_window_observations = static_cast<double>(window_observations_) / s.window_solves;
+    s.mean_window_fixed_observations = static_cast<double>(window_fixed_observations_) / s.window_solves;
+  }
   return s;
 }
 
@@ -96,6 +105,8 @@ void MappingWorker::append_summary(std::vector<std::pair<std::string, double>>* 
   fields->emplace_back("ba_solve_median_ms", s.solve_median_ms);
   fields->emplace_back("ba_solve_p99_ms", s.solve_p99_ms);
   fields->emplace_back("ba_solve_max_ms", s.solve_max_ms);
+  fields->emplace_back("ba_mean_window_observations", s.mean_window_observations);
+  fields->emplace_back("ba_mean_window_fixed_observations", s.mean_window_fixed_observations);
   fields->emplace_back("ba_max_allocations_per_solve", static_cast<double>(s.max_allocations_per_solve));
   fields->emplace_back("ba_mean_surface_distance_mm", s.mean_surface_distance_mm);
 }

@@ -34,6 +34,8 @@ struct MappingStats {
   double solve_median_ms = 0, solve_p99_ms = 0, solve_max_ms = 0;  // wall time of solve()
   std::uint64_t max_allocations_per_solve = 0;  // mapping thread, inside solve()
   double mean_surface_distance_mm = -1;         // of the last usable job's points after the solve
+  double mean_window_observations = 0;          // reprojection residuals per window solve
+  double mean_window_fixed_observations = 0;    // of those: from fixed keyframes
 };
 
 class MappingWorker final : public BaChannel {
@@ -72,6 +74,7 @@ class MappingWorker final : public BaChannel {
   // Written by the mapping thread only; read after stop().
   MappingStats stats_;
   LatencyHistogram solve_ms_;
+  std::int64_t window_observations_ = 0, window_fixed_observations_ = 0;
 };
 
 }  // namespace st::app

@@ -1,7 +1,7 @@
-// Bundle-adjustment residuals: the pose manifold (Plus/Minus consistency,
-// MinusJacobian a left inverse of PlusJacobian) and finite-difference
-// Jacobian tests of the reprojection and shape cost functions in the
-// tangent space Ceres optimises in.
+// Bundle-adjustment residuals: the SE3 left Jacobian of exp and
+// finite-difference Jacobian tests of the reprojection cost (in the 6-dim
+// pose delta Ceres optimises, at and away from the linearization point)
+// and of the shape cost functions.
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -26,68 +26,58 @@ SE3 random_pose(std::mt19937& rng) {
 
 }  // namespace
 
-TEST_CASE("ba residuals: SE3 manifold Plus/Minus round trip and Jacobian consistency") {
+TEST_CASE("ba residuals: SE3 left Jacobian of exp matches central differences; identity at zero") {
   std::mt19937 rng(1);
+  CHECK((se3_left_jacobian(Vec6::Zero()) - Mat6::Identity()).norm() == 0.0);
   for (int trial = 0; trial < 20; ++trial) {
-    double x[7], y[7];
-    pose_to_params(random_pose(rng), x);
-    Vec6 d;
-    std::normal_distribution<double> g(0.0, 0.1);
-    for (int k = 0; k < 6; ++k) d[k] = g(rng);
-    REQUIRE(se3_plus(x, d.data(), y));
-    Vec6 back;
-    REQUIRE(se3_minus(y, x, back.data()));
-    CHECK((back - d).norm() < 1e-9);
-    const Mat76 P = se3_plus_jacobian(x);
-    const Mat67 M = se3_minus_jacobian(x);
-    CHECK((M * P - Mat6::Identity()).norm() < 1e-12);
-    // PlusJacobian against central differences of Plus.
+    std::normal_distribution<double> g(0.0, trial < 10 ? 0.05 : 0.8);  // BA-sized deltas, then large ones
+    Vec6 xi;
+    for (int k = 0; k < 6; ++k) xi[k] = (k < 3 ? 1.0 : 20.0) * g(rng);
+    const Mat6 J = se3_left_jacobian(xi);
+    const SE3 T = SE3::exp(xi);
+    // exp(xi + h e_k) exp(xi)^-1 = exp(h J e_k): its log over h is column k.
     const double h = 1e-6;
     for (int k = 0; k < 6; ++k) {
-      double xp[7], xm[7];
       Vec6 e = Vec6::Zero();
       e[k] = h;
-      REQUIRE(se3_plus(x, e.data(), xp));
-      e[k] = -h;
-      REQUIRE(se3_plus(x, e.data(), xm));
-      for (int r = 0; r < 7; ++r) CHECK((xp[r] - xm[r]) / (2 * h) == doctest::Approx(P(r, k)).epsilon(1e-5).scale(1));
+      const Vec6 col = ((SE3::exp(xi + e) * T.inverse()).log() - (SE3::exp(xi - e) * T.inverse()).log()) / (2 * h);
+      for (int r = 0; r < 6; ++r) CHECK(col[r] == doctest::Approx(J(r, k)).epsilon(1e-5).scale(1));
     }
   }
 }
 
-TEST_CASE("ba residuals: reprojection cost Jacobians match central differences (pose tangent, point)") {
+TEST_CASE("ba residuals: reprojection cost Jacobians match central differences (pose delta, point)") {
   std::mt19937 rng(2);
   std::normal_distribution<double> g(0.0, 1.0);
   const Pinhole K = track_test_pinhole();
   for (int trial = 0; trial < 30; ++trial) {
-    const SE3 T = random_pose(rng);
+    const SE3 T0 = random_pose(rng);
+    // At the linearization point (delta 0) and away from it (a BA step).
+    Vec6 delta = Vec6::Zero();
+    if (trial % 2 == 1)
+      for (int k = 0; k < 6; ++k) delta[k] = (k < 3 ? 0.03 : 1.5) * g(rng);
+    const SE3 T = SE3::exp(delta) * T0;
     const Vec3 p_camera(20 * g(rng), 15 * g(rng), 80 + 10 * std::abs(g(rng)));
     Vec3 p_model = T.inverse() * p_camera;
     const Vec2 px = K.project(p_camera) + Vec2(3 * g(rng), 3 * g(rng));
     const int octave = trial % 8;
     const double sqrt_info = std::sqrt(octave_information(octave));
-    const auto cost = [&](const double* xx, const Vec3& f, double* rr, double* jp, double* jf) {
-      return reprojection_cost(K, px, sqrt_info, 1.0, xx, f.data(), rr, jp, jf);
+    const auto cost = [&](const Vec6& d, const Vec3& f, double* rr, double* jp, double* jf) {
+      return reprojection_cost(K, px, sqrt_info, 1.0, T0, d.data(), f.data(), rr, jp, jf);
     };
-    double x[7];
-    pose_to_params(T, x);
-    double r[2], Jp[14], Jf[6];
-    REQUIRE(cost(x, p_model, r, Jp, Jf));
+    double r[2], Jp[12], Jf[6];
+    REQUIRE(cost(delta, p_model, r, Jp, Jf));
     CHECK(r[0] == doctest::Approx(sqrt_info * (K.project(p_camera) - px).x()));
-    const Mat76 P = se3_plus_jacobian(x);
-    const Eigen::Matrix<double, 2, 6> J_tangent = Eigen::Map<Eigen::Matrix<double, 2, 7, Eigen::RowMajor>>(Jp) * P;
+    const Eigen::Map<Mat26r> J_delta(Jp);
     const double h = 1e-6;
     for (int k = 0; k < 6; ++k) {
-      double xp[7], xm[7], rp[2], rm[2];
+      double rp[2], rm[2];
       Vec6 e = Vec6::Zero();
       e[k] = h;
-      se3_plus(x, e.data(), xp);
-      e[k] = -h;
-      se3_plus(x, e.data(), xm);
-      REQUIRE(cost(xp, p_model, rp, nullptr, nullptr));
-      REQUIRE(cost(xm, p_model, rm, nullptr, nullptr));
+      REQUIRE(cost(delta + e, p_model, rp, nullptr, nullptr));
+      REQUIRE(cost(delta - e, p_model, rm, nullptr, nullptr));
       for (int i = 0; i < 2; ++i)
-        CHECK((rp[i] - rm[i]) / (2 * h) == doctest::Approx(J_tangent(i, k)).epsilon(1e-5).scale(1));
+        CHECK((rp[i] - rm[i]) / (2 * h) == doctest::Approx(J_delta(i, k)).epsilon(1e-5).scale(1));
     }
     const Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> J_point(Jf);
     for (int k = 0; k < 3; ++k) {
@@ -95,14 +85,14 @@ TEST_CASE("ba residuals: reprojection cost Jacobians match central differences (
       fp[k] += h;
       fm[k] -= h;
       double rp[2], rm[2];
-      REQUIRE(cost(x, fp, rp, nullptr, nullptr));
-      REQUIRE(cost(x, fm, rm, nullptr, nullptr));
+      REQUIRE(cost(delta, fp, rp, nullptr, nullptr));
+      REQUIRE(cost(delta, fm, rm, nullptr, nullptr));
       for (int i = 0; i < 2; ++i)
         CHECK((rp[i] - rm[i]) / (2 * h) == doctest::Approx(J_point(i, k)).epsilon(1e-5).scale(1));
     }
     // Behind the camera: refused (Ceres rejects the step).
     p_model = T.inverse() * Vec3(0, 0, -5);
-    CHECK_FALSE(cost(x, p_model, r, nullptr, nullptr));
+    CHECK_FALSE(cost(delta, p_model, r, nullptr, nullptr));
   }
 }
 

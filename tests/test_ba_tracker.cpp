@@ -140,7 +140,8 @@ TEST_CASE("ba tracker: the tracking thread allocates nothing while the mapping t
                         << " jobs submitted, " << applied << " applied; mapping thread: " << m.window_solves
                         << " window + " << m.global_solves << " global solves, median " << m.solve_median_ms
                         << " ms, max " << m.solve_max_ms << " ms, <= " << m.max_allocations_per_solve
-                        << " allocations per solve");
+                        << " allocations per solve; " << m.mean_window_observations << " observations per window ("
+                        << m.mean_window_fixed_observations << " from fixed keyframes)");
   CHECK(allocations == 0);
   CHECK(submitted >= 3);
   CHECK(applied >= 2);

@@ -181,3 +181,156 @@ TEST_CASE("ba window: observations capped to the newest k per point still bring 
     CHECK_FALSE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
   }
 }
+
+TEST_CASE("ba window: observations from fixed keyframes capped per point; the window still comes back") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BaWindowSpec spec;
+  spec.points = 400;
+  spec.fixed_keyframes = 4;  // a tracker window pulls in many older keyframes
+  constexpr int kCap = 1;
+  for (const double w_shape : {100.0, 0.0}) {
+    BaWindow w = make_ba_window(mesh, K, spec);
+    BundleAdjusterOptions o = options(w_shape);
+    o.max_fixed_observations_per_point = kCap;
+    BundleAdjuster ba;
+    REQUIRE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+    // Per point: every free observation, at most kCap fixed ones.
+    int expected = 0, expected_fixed = 0;
+    for (int p = 0; p < w.job.point_count; ++p) {
+      int fixed = 0;
+      for (int i = 0; i < w.job.observation_count; ++i) {
+        const BaObservation& ob = w.job.observations[static_cast<std::size_t>(i)];
+        if (ob.point != p) continue;
+        if (w.job.keyframes[static_cast<std::size_t>(ob.keyframe)].fixed)
+          ++fixed;
+        else
+          ++expected;
+      }
+      expected_fixed += std::min(fixed, kCap);
+    }
+    const Errors start = errors(w, ba);
+    REQUIRE(ba.solve(&w.job));
+    const Errors end = errors(w, ba);
+    MESSAGE("w_shape " << w_shape << ", <= " << kCap << " fixed obs/point: " << w.job.summary.observations << " of "
+                       << w.job.observation_count << " observations (" << w.job.summary.fixed_observations
+                       << " fixed); rotation " << start.rot_deg << " -> " << end.rot_deg << " deg, centre "
+                       << start.trans_mm << " -> " << end.trans_mm << " mm, points " << start.point_mm << " -> "
+                       << end.point_mm << " mm");
+    CHECK(w.job.summary.fixed_observations == expected_fixed);  // all in front in the simulated window
+    CHECK(w.job.summary.observations == expected + expected_fixed);
+    CHECK(w.job.summary.observations < w.job.observation_count);
+    CHECK(end.rot_deg < 0.2 * start.rot_deg);
+    CHECK(end.trans_mm < 0.2 * start.trans_mm);
+    CHECK(end.point_mm < (w_shape > 0 ? 0.5 : 1.0) * start.point_mm);
+    for (const int bad : {-1, kMaxObservationsPerPointCap + 1}) {
+      o.max_fixed_observations_per_point = bad;
+      CHECK_FALSE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+    }
+  }
+}
+
+TEST_CASE("ba window: points seen once are left out unchanged (no pose information), or kept on request") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BaWindowSpec spec;
+  spec.points = 300;
+  const BaWindow w = make_ba_window(mesh, K, spec);
+  // The window plus 50 single-view points: copies of window points with only
+  // their first observation.
+  constexpr int kSingle = 50;
+  BaJob job;
+  REQUIRE(job.configure(w.job.keyframe_count, w.job.point_count + kSingle, w.job.observation_count + kSingle).ok());
+  for (int k = 0; k < w.job.keyframe_count; ++k) {
+    const BaKeyframe& kf = w.job.keyframes[static_cast<std::size_t>(k)];
+    REQUIRE(job.add_keyframe(kf.id, kf.frame, w.job.pose(k), kf.fixed) == k);
+  }
+  for (int i = 0; i < w.job.point_count; ++i) REQUIRE(job.add_point(i, 1, w.job.point(i)) == i);
+  for (int i = 0; i < w.job.observation_count; ++i) {
+    const BaObservation& o = w.job.observations[static_cast<std::size_t>(i)];
+    REQUIRE(job.add_observation(o.keyframe, o.point, Vec2(o.x_ideal, o.y_ideal), o.info));
+  }
+  for (int s = 0; s < kSingle; ++s) {
+    const int p = job.add_point(w.job.point_count + s, 1, w.job.point(s));
+    for (int i = 0; i < w.job.observation_count; ++i) {
+      const BaObservation& o = w.job.observations[static_cast<std::size_t>(i)];
+      if (o.point != s || w.job.keyframes[static_cast<std::size_t>(o.keyframe)].fixed) continue;
+      REQUIRE(job.add_observation(o.keyframe, p, Vec2(o.x_ideal, o.y_ideal), o.info));
+      break;
+    }
+  }
+  for (const int min_obs : {2, 1}) {
+    BundleAdjusterOptions o = options(100.0);
+    o.min_observations_per_point = min_obs;
+    BundleAdjuster ba;
+    REQUIRE(ba.configure(o, mesh, K, job.point_capacity(), job.observation_capacity()).ok());
+    BaJob solved = job;
+    REQUIRE(solved.add_point(-1, -1, Vec3::Zero()) < 0);  // full: the copy kept the capacities
+    REQUIRE(ba.solve(&solved));
+    int moved = 0;
+    for (int s = 0; s < kSingle; ++s)
+      moved += solved.point(w.job.point_count + s) != job.point(w.job.point_count + s) ? 1 : 0;
+    MESSAGE("min " << min_obs << " observations/point: " << solved.summary.points_skipped << " skipped, "
+                   << solved.summary.observations << " observations, " << moved << " single-view points moved");
+    if (min_obs == 2) {
+      CHECK(solved.summary.points_skipped == kSingle);
+      CHECK(solved.summary.observations == w.job.observation_count);
+      CHECK(moved == 0);
+    } else {
+      CHECK(solved.summary.points_skipped == 0);
+      CHECK(solved.summary.observations == w.job.observation_count + kSingle);
+      CHECK(moved == kSingle);
+    }
+    // The window itself comes back either way.
+    double rot = 0;
+    int free = 0;
+    for (int k = 0; k < solved.keyframe_count; ++k) {
+      if (solved.keyframes[static_cast<std::size_t>(k)].fixed) continue;
+      rot += pose_delta(w.T_true[static_cast<std::size_t>(k)], solved.pose(k)).angle_deg;
+      ++free;
+    }
+    CHECK(rot / free < 0.2 * spec.pose_rot_deg);
+  }
+  BundleAdjusterOptions bad = options(100.0);
+  bad.min_observations_per_point = 0;
+  BundleAdjuster ba;
+  CHECK_FALSE(ba.configure(bad, mesh, K, job.point_capacity(), job.observation_capacity()).ok());
+}
+
+TEST_CASE("ba window: tangent planes are reused across solves while points stay put, re-queried when moved") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  BaWindowSpec spec;
+  spec.points = 200;
+  BaWindow w = make_ba_window(mesh, K, spec);
+  BundleAdjuster ba;
+  REQUIRE(ba.configure(options(100.0), mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+  const BaJob pristine = w.job;
+  REQUIRE(ba.solve(&w.job));
+  const int points = w.job.summary.plane_queries;
+  CHECK(points == w.job.point_count);  // every point seen twice or more here
+  const BaJob first = w.job;
+  // The same window again: every plane reused, the same answer bit for bit.
+  w.job = pristine;
+  REQUIRE(ba.solve(&w.job));
+  CHECK(w.job.summary.plane_queries == 0);
+  bool same = true;
+  for (int i = 0; i < w.job.point_count; ++i) same = same && w.job.point(i) == first.point(i);
+  CHECK(same);
+  // Points moved beyond plane_reuse_mm (or re-created in their slot): queried again.
+  w.job = pristine;
+  for (int i = 0; i < w.job.point_count; ++i) {
+    BaPoint& p = w.job.points[static_cast<std::size_t>(i)];
+    if (i % 2 == 0)
+      p.p_model[0] += 2.0 * ba.options().plane_reuse_mm;
+    else
+      p.created_frame += 1;
+  }
+  REQUIRE(ba.solve(&w.job));
+  CHECK(w.job.summary.plane_queries == points);
+  // Forgotten: queried again.
+  w.job = pristine;
+  ba.forget_planes();
+  REQUIRE(ba.solve(&w.job));
+  CHECK(w.job.summary.plane_queries == points);
+}

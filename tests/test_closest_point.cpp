@@ -72,6 +72,8 @@ TEST_CASE("closest point: triangle kernel is the minimum over a dense sampling o
     const Vec3 n3 = (b - a).cross(c - a);
     CHECK(std::abs(n3.normalized().dot(s.p_model - a)) < 1e-9);
     CHECK(std::abs((p - s.p_model).norm() - s.distance_mm) < 1e-12);
+    // The search kernel (squared distance only) agrees.
+    CHECK(triangle_distance2(p, a, b, c) == doctest::Approx(s.distance_mm * s.distance_mm).epsilon(1e-12).scale(1e-12));
   }
 }
 
@@ -83,6 +85,8 @@ TEST_CASE("closest point: degenerate triangles fall back to their edges") {
   const SurfacePoint v = closest_point_on_triangle(Vec3(3, 0, 0), a, a, a);
   CHECK(v.distance_mm == doctest::Approx(3.0));
   CHECK(v.feature == SurfaceFeature::kVertex);
+  CHECK(triangle_distance2(Vec3(0.5, 1, 0), a, b, c) == doctest::Approx(1.0));
+  CHECK(triangle_distance2(Vec3(3, 0, 0), a, a, a) == doctest::Approx(9.0));
 }
 
 TEST_CASE("closest point: BVH equals brute force over every triangle of the CT liver") {
