@@ -182,13 +182,21 @@ void ImagePyramid::horizontal_blend(const std::uint16_t* tmp, const ResizeTables
 #if CV_SIMD128
   const std::int16_t* wpair = t.wpair.data();
   const cv::v_int32x4 half = cv::v_setall_s32(8192);
+  // (tmp[x0], tmp[x0 + 1]) as one 32-bit load each, assembled in registers:
+  // going through a stack array would make every vector load wait on four
+  // narrower stores (no store-to-load forwarding).
+  const auto pair = [tmp](std::int32_t x) {
+    std::uint32_t v;
+    std::memcpy(&v, tmp + x, sizeof v);
+    return v;
+  };
   for (; i + 16 <= width; i += 16) {
-    alignas(16) std::uint32_t pairs[16];  // (tmp[x0], tmp[x0 + 1]) as one 32-bit load each
-    for (int j = 0; j < 16; ++j) std::memcpy(&pairs[j], tmp + x0[i + j], sizeof(std::uint32_t));
-    const std::int16_t* p16 = reinterpret_cast<const std::int16_t*>(pairs);
+    const std::int32_t* xi = x0 + i;
     cv::v_int32x4 s[4];
-    for (int q = 0; q < 4; ++q)
-      s[q] = cv::v_shr<14>(cv::v_dotprod(cv::v_load(p16 + 8 * q), cv::v_load(wpair + 2 * i + 8 * q)) + half);
+    for (int q = 0; q < 4; ++q) {
+      const cv::v_uint32x4 pairs(pair(xi[4 * q]), pair(xi[4 * q + 1]), pair(xi[4 * q + 2]), pair(xi[4 * q + 3]));
+      s[q] = cv::v_shr<14>(cv::v_dotprod(cv::v_reinterpret_as_s16(pairs), cv::v_load(wpair + 2 * i + 8 * q)) + half);
+    }
     cv::v_store(out + i, cv::v_pack_u(cv::v_pack(s[0], s[1]), cv::v_pack(s[2], s[3])));
   }
 #endif

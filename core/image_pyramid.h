@@ -30,7 +30,7 @@ class ImagePyramid {
   // Smooths the kSmoothTilePx x kSmoothTilePx tiles of level k whose byte in
   // tiles (tiles_x per row) is non-zero; bit-identical to the whole-level
   // smoothing of build() there. Allocates nothing.
-  static constexpr int kSmoothTilePx = 32;
+  static constexpr int kSmoothTilePx = 16;  // 16: ~25% fewer pixels smoothed than 32 (patches of radius 15)
   void smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x);
 
   int levels() const { return levels_; }
