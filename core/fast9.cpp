@@ -27,15 +27,25 @@ int best_arc_min(const int* d) {
 }
 
 #if CV_SIMD128
-// best_arc_min for 16 pixels: d[0..15] are the per-lane circle differences
-// (saturated at 0), the arcs wrap around: 4 x 16 minima and 15 maxima.
-inline cv::v_uint8x16 best_arc_min_simd(const cv::v_uint8x16* d) {
-  cv::v_uint8x16 m2[16], m4[16];
-  for (int i = 0; i < 16; ++i) m2[i] = cv::v_min(d[i], d[(i + 1) & 15]);
-  for (int i = 0; i < 16; ++i) m4[i] = cv::v_min(m2[i], m2[(i + 2) & 15]);
+// best_arc_min for 16 pixels q[0..15]: circle differences d(i) =
+// (circle ^ flip) - (centre ^ flip), saturated at 0, the arcs wrap around.
+// A 9-arc is three 3-arcs: the 16 minima of 3 are kept (16 registers, the
+// differences are reloaded from L1 instead of held), then 2 x 16 minima and
+// 15 maxima; fewer live vectors than a 2-4-8 tree, so fewer spills on SSE2.
+inline cv::v_uint8x16 best_arc_min_simd(const std::uint8_t* q, const std::ptrdiff_t* off,
+                                        cv::v_uint8x16 flip, cv::v_uint8x16 centre_flipped) {
+  const auto d = [&](int i) { return (cv::v_load(q + off[i & 15]) ^ flip) - centre_flipped; };
+  cv::v_uint8x16 m3[16];
+  cv::v_uint8x16 a = d(0), b = d(1);
+  for (int i = 0; i < 16; ++i) {
+    const cv::v_uint8x16 c = d(i + 2);
+    m3[i] = cv::v_min(cv::v_min(a, b), c);
+    a = b;
+    b = c;
+  }
   cv::v_uint8x16 best = cv::v_setzero_u8();
   for (int i = 0; i < 16; ++i)
-    best = cv::v_max(best, cv::v_min(cv::v_min(m4[i], m4[(i + 4) & 15]), d[(i + 8) & 15]));
+    best = cv::v_max(best, cv::v_min(cv::v_min(m3[i], m3[(i + 3) & 15]), m3[(i + 6) & 15]));
   return best;
 }
 #endif
@@ -108,16 +118,12 @@ void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int thresho
   const cv::v_uint8x16 over4 = best_low - hi, under4 = lo - best_high;
   if (cv::v_signmask((over4 | under4) == zero) == 0xFFFF) return;
   const cv::v_uint8x16 bright = ~(over4 == zero), dark = ~(under4 == zero);
-  cv::v_uint8x16 d[16];
   // Lanes that can only be dark: inverted.
   const cv::v_uint8x16 flip = dark & ~bright;
-  const cv::v_uint8x16 vf = v ^ flip;
-  for (int i = 0; i < 16; ++i) d[i] = (cv::v_load(q + off[i]) ^ flip) - vf;  // saturating
-  cv::v_uint8x16 score = best_arc_min_simd(d);
+  cv::v_uint8x16 score = best_arc_min_simd(q, off, flip, v ^ flip);
   if (cv::v_check_any(bright & dark)) {
-    const cv::v_uint8x16 vi = ~v;
-    for (int i = 0; i < 16; ++i) d[i] = ~cv::v_load(q + off[i]) - vi;
-    score = cv::v_max(score, best_arc_min_simd(d));
+    const cv::v_uint8x16 all = cv::v_setall_u8(255);
+    score = cv::v_max(score, best_arc_min_simd(q, off, all, v ^ all));
   }
   // A lane is a corner iff its score exceeds the threshold.
   unsigned mask = static_cast<unsigned>(cv::v_signmask(score > tv)) & lane_keep;

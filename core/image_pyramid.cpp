@@ -129,7 +129,7 @@ Status ImagePyramid::configure(int width, int height, int levels, float scale_fa
     const int w = std::max(1, static_cast<int>(std::lround(width / static_cast<double>(scale_[k]))));
     const int h = std::max(1, static_cast<int>(std::lround(height / static_cast<double>(scale_[k]))));
     levels_img_[k].allocate(w, h);
-    smooth_img_[k].allocate(w, h);
+    smooth_img_[k].allocate(width, h);  // rows of the level-0 width: one stride for all levels
     if (k > 0) {
       make_axis_table(w, levels_img_[k - 1].width(), tables_[k].x0, tables_[k].wx);
       make_axis_table(h, levels_img_[k - 1].height(), tables_[k].y0, tables_[k].wy);
@@ -219,7 +219,7 @@ bool ImagePyramid::build_levels(GrayView image) {
 bool ImagePyramid::build(GrayView image) {
   if (!build_levels(image)) return false;
   for (int k = 0; k < levels_; ++k)
-    gaussian_blur7(levels_img_[k].cview(), smooth_img_[k].view(), blur_tmp_.data());
+    gaussian_blur7(levels_img_[k].cview(), smooth_view(k), blur_tmp_.data());
   return true;
 }
 
@@ -229,7 +229,7 @@ bool ImagePyramid::build(GrayView image) {
 // so the result is identical.
 void ImagePyramid::smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x) {
   const GrayView src = levels_img_[k].cview();
-  const ImageView<std::uint8_t> dst = smooth_img_[k].view();
+  const ImageView<std::uint8_t> dst = smooth_view(k);
   const int w = src.width, h = src.height;
   const int n_tx = std::min(tiles_x, (w + kSmoothTilePx - 1) / kSmoothTilePx);
   std::uint8_t* p_base = blur_tmp_.data() + 3;  // p_base[i] = column x0 + i of the run

@@ -116,6 +116,7 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
     return make_error("OrbConfig.organ_margin_px must be in [0, 256]");
   if (Status s = pyramid_.configure(width, height, c.levels, c.scale_factor); !s) return s;
   if (Status s = fast_.configure(width); !s) return s;
+  descriptor_.set_stride(pyramid_.smoothed(0).stride);  // false (slower path) only beyond 2340 px wide
   config_ = c;
   width_ = width;
   height_ = height;
