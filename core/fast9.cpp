@@ -85,8 +85,8 @@ namespace {
 // be both is the dark polarity scored again for all lanes. The score of a
 // lane is max(bright, dark); a polarity failing its pre-test is <= threshold,
 // so leaving it out never changes a corner's score.
-void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int threshold, int x,
-                   unsigned lane_keep, std::uint8_t* scores, std::uint16_t* xs, int* n) {
+CV_ALWAYS_INLINE void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int threshold, int x,
+                                    unsigned lane_keep, std::uint8_t* scores, std::uint16_t* xs, int* n) {
   const cv::v_uint8x16 tv = cv::v_setall_u8(static_cast<std::uint8_t>(threshold));
   const cv::v_uint8x16 v = cv::v_load(q);
   const cv::v_uint8x16 hi = v + tv, lo = v - tv;  // saturating
