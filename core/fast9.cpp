@@ -85,8 +85,9 @@ namespace {
 // be both is the dark polarity scored again for all lanes. The score of a
 // lane is max(bright, dark); a polarity failing its pre-test is <= threshold,
 // so leaving it out never changes a corner's score.
-CV_ALWAYS_INLINE void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int threshold, int x,
-                                    unsigned lane_keep, std::uint8_t* scores, std::uint16_t* xs, int* n) {
+CV_ALWAYS_INLINE void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int threshold,
+                                    int x, unsigned lane_keep, std::uint8_t* scores,
+                                    std::uint16_t* xs, int* n) {
   const cv::v_uint8x16 tv = cv::v_setall_u8(static_cast<std::uint8_t>(threshold));
   const cv::v_uint8x16 v = cv::v_load(q);
   const cv::v_uint8x16 hi = v + tv, lo = v - tv;  // saturating
@@ -103,7 +104,7 @@ CV_ALWAYS_INLINE void score_block16(const std::uint8_t* q, const std::ptrdiff_t*
   // consecutive ones, so a corner needs 4 consecutive even pixels all above
   // hi (or all below lo). Halves the blocks scored in full at the strict
   // threshold, and picks each lane's polarity more tightly.
-  const cv::v_uint8x16 e[8] = {c0, cv::v_load(q + off[2]), c4, cv::v_load(q + off[6]),
+  const cv::v_uint8x16 e[8] = {c0, cv::v_load(q + off[2]),  c4,  cv::v_load(q + off[6]),
                                c8, cv::v_load(q + off[10]), c12, cv::v_load(q + off[14])};
   cv::v_uint8x16 lo2[8], hi2[8];  // min / max of even neighbours (i, i + 1)
   for (int i = 0; i < 8; ++i) {
@@ -208,7 +209,8 @@ int Fast9Detector::detect(GrayView image, int threshold, int border, const std::
   for (int y = border; y <= h - border; ++y) {
     if (y < h - border) {
       const std::uint8_t* arow = allowed ? allowed + static_cast<std::ptrdiff_t>(y) * allowed_stride : nullptr;
-      score_row(image, y, threshold, border, w - border, arow, allowed_stride, srow[2], xrow[2], &nrow[2]);
+      score_row(image, y, threshold, border, w - border, arow, allowed_stride, srow[2], xrow[2],
+                &nrow[2]);
     }
     const std::uint8_t *up = srow[0], *mid = srow[1], *dn = srow[2];
     for (int i = 0; i < nrow[1] && count < capacity; ++i) {

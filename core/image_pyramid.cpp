@@ -194,8 +194,10 @@ void ImagePyramid::horizontal_blend(const std::uint16_t* tmp, const ResizeTables
     const std::int32_t* xi = x0 + i;
     cv::v_int32x4 s[4];
     for (int q = 0; q < 4; ++q) {
-      const cv::v_uint32x4 pairs(pair(xi[4 * q]), pair(xi[4 * q + 1]), pair(xi[4 * q + 2]), pair(xi[4 * q + 3]));
-      s[q] = cv::v_shr<14>(cv::v_dotprod(cv::v_reinterpret_as_s16(pairs), cv::v_load(wpair + 2 * i + 8 * q)) + half);
+      const cv::v_uint32x4 pairs(pair(xi[4 * q]), pair(xi[4 * q + 1]), pair(xi[4 * q + 2]),
+                                 pair(xi[4 * q + 3]));
+      const cv::v_int16x8 w = cv::v_load(wpair + 2 * i + 8 * q);
+      s[q] = cv::v_shr<14>(cv::v_dotprod(cv::v_reinterpret_as_s16(pairs), w) + half);
     }
     cv::v_store(out + i, cv::v_pack_u(cv::v_pack(s[0], s[1]), cv::v_pack(s[2], s[3])));
   }

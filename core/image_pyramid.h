@@ -31,7 +31,8 @@ class ImagePyramid {
   // Smooths the kSmoothTilePx x kSmoothTilePx tiles of level k whose byte in
   // tiles (tiles_x per row) is non-zero; bit-identical to the whole-level
   // smoothing of build() there. Allocates nothing.
-  static constexpr int kSmoothTilePx = 16;  // 16: ~25% fewer pixels smoothed than 32 (patches of radius 15)
+  // 16: ~25% fewer pixels smoothed than 32 (for patches of radius 15).
+  static constexpr int kSmoothTilePx = 16;
   void smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x);
 
   int levels() const { return levels_; }
@@ -53,7 +54,8 @@ class ImagePyramid {
   };
   void resize_level(int k);
   ImageView<std::uint8_t> smooth_view(int k) {
-    return ImageView<std::uint8_t>(smooth_img_[k].data(), levels_img_[k].width(), levels_img_[k].height(), width_);
+    return ImageView<std::uint8_t>(smooth_img_[k].data(), levels_img_[k].width(),
+                                   levels_img_[k].height(), width_);
   }
   static void horizontal_blend(const std::uint16_t* tmp, const ResizeTables& t, std::uint8_t* out,
                                int width);

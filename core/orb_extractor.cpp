@@ -118,7 +118,8 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
     return make_error("OrbConfig.organ_margin_px must be in [0, 256]");
   if (Status s = pyramid_.configure(width, height, c.levels, c.scale_factor); !s) return s;
   if (Status s = fast_.configure(width); !s) return s;
-  descriptor_.set_stride(pyramid_.smoothed(0).stride);  // false (slower path) only beyond 2340 px wide
+  // false (the slower (dx, dy) path) only for frames beyond 2340 px wide
+  descriptor_.set_stride(pyramid_.smoothed(0).stride);
   config_ = c;
   width_ = width;
   height_ = height;
@@ -483,9 +484,11 @@ void OrbExtractor::harris_keys(int level, int n) {
     for (int dy = -3; dy <= 3; ++dy) {
       const std::uint8_t* p = img.row(c.y + dy) + c.x - 3;  // lanes dx = -3 .. 4
       const cv::v_int16x8 gx = (cv::v_reinterpret_as_s16(cv::v_load_expand(p + 1)) -
-                                cv::v_reinterpret_as_s16(cv::v_load_expand(p - 1))) & keep7;
+                                cv::v_reinterpret_as_s16(cv::v_load_expand(p - 1))) &
+                               keep7;
       const cv::v_int16x8 gy = (cv::v_reinterpret_as_s16(cv::v_load_expand(p + st)) -
-                                cv::v_reinterpret_as_s16(cv::v_load_expand(p - st))) & keep7;
+                                cv::v_reinterpret_as_s16(cv::v_load_expand(p - st))) &
+                               keep7;
       axx += cv::v_dotprod(gx, gx);
       ayy += cv::v_dotprod(gy, gy);
       axy += cv::v_dotprod(gx, gy);

@@ -42,14 +42,17 @@ TEST_CASE("orb fast9: a sparse chunk map gives exactly the corners of the open c
     Fast9Detector fast;
     REQUIRE(fast.configure(1280));
     std::vector<FastCorner> all(1280 * 720 / 4), masked(1280 * 720 / 4);
-    const int n_all = fast.detect(view_of(img), threshold, 16, nullptr, 0, all.data(), static_cast<int>(all.size()));
-    const int n_masked = fast.detect(view_of(img), threshold, 16, allowed.data(), chunks, masked.data(),
-                                     static_cast<int>(masked.size()));
+    const int n_all = fast.detect(view_of(img), threshold, 16, nullptr, 0, all.data(),
+                                  static_cast<int>(all.size()));
+    const int n_masked = fast.detect(view_of(img), threshold, 16, allowed.data(), chunks,
+                                     masked.data(), static_cast<int>(masked.size()));
     // Suppression sees only scored pixels, so compare the scores of the open
     // pixels instead of the suppressed lists: every masked corner is open and
     // passes the threshold; every unmasked corner in an open chunk whose
     // 3x3 neighbourhood is all open is found by the masked run too.
-    const auto open = [&](int x, int y) { return allowed[static_cast<std::size_t>(y) * chunks + (x >> 4)] != 0; };
+    const auto open = [&](int x, int y) {
+      return allowed[static_cast<std::size_t>(y) * chunks + (x >> 4)] != 0;
+    };
     std::set<std::pair<int, int>> masked_set;
     for (int i = 0; i < n_masked; ++i) {
       const FastCorner& c = masked[static_cast<std::size_t>(i)];
@@ -68,8 +71,8 @@ TEST_CASE("orb fast9: a sparse chunk map gives exactly the corners of the open c
       ++expected;
       found += masked_set.count({c.x, c.y}) ? 1 : 0;
     }
-    MESSAGE("threshold " << threshold << ": all " << n_all << ", masked " << n_masked << ", interior "
-                         << expected << " found " << found);
+    MESSAGE("threshold " << threshold << ": all " << n_all << ", masked " << n_masked
+                         << ", interior " << expected << " found " << found);
     CHECK(expected > 50);
     CHECK(found == expected);
   }
@@ -96,7 +99,8 @@ TEST_CASE("orb descriptor: precomputed pixel offsets give the same descriptors")
   // An image of another stride takes the (dx, dy) path, with the same result.
   cv::Mat wide(240, 400, CV_8UC1, cv::Scalar(0));
   smooth.copyTo(wide(cv::Rect(0, 0, 320, 240)));
-  const GrayView narrow_view(wide.ptr<std::uint8_t>(0), 320, 240, static_cast<std::ptrdiff_t>(wide.step[0]));
+  const GrayView narrow_view(wide.ptr<std::uint8_t>(0), 320, 240,
+                             static_cast<std::ptrdiff_t>(wide.step[0]));
   Descriptor a{}, b{};
   plain.compute(view_of(smooth), 100, 100, 33.f, a.data());
   offsets.compute(narrow_view, 100, 100, 33.f, b.data());
