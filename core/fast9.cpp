@@ -27,15 +27,25 @@ int best_arc_min(const int* d) {
 }
 
 #if CV_SIMD128
-// best_arc_min for 16 pixels: d[0..15] are the per-lane circle differences
-// (saturated at 0), the arcs wrap around: 4 x 16 minima and 15 maxima.
-cv::v_uint8x16 best_arc_min_simd(const cv::v_uint8x16* d) {
-  cv::v_uint8x16 m2[16], m4[16];
-  for (int i = 0; i < 16; ++i) m2[i] = cv::v_min(d[i], d[(i + 1) & 15]);
-  for (int i = 0; i < 16; ++i) m4[i] = cv::v_min(m2[i], m2[(i + 2) & 15]);
+// best_arc_min for 16 pixels q[0..15]: circle differences d(i) =
+// (circle ^ flip) - (centre ^ flip), saturated at 0, the arcs wrap around.
+// A 9-arc is three 3-arcs: the 16 minima of 3 are kept (16 registers, the
+// differences are reloaded from L1 instead of held), then 2 x 16 minima and
+// 15 maxima; fewer live vectors than a 2-4-8 tree, so fewer spills on SSE2.
+inline cv::v_uint8x16 best_arc_min_simd(const std::uint8_t* q, const std::ptrdiff_t* off,
+                                        cv::v_uint8x16 flip, cv::v_uint8x16 centre_flipped) {
+  const auto d = [&](int i) { return (cv::v_load(q + off[i & 15]) ^ flip) - centre_flipped; };
+  cv::v_uint8x16 m3[16];
+  cv::v_uint8x16 a = d(0), b = d(1);
+  for (int i = 0; i < 16; ++i) {
+    const cv::v_uint8x16 c = d(i + 2);
+    m3[i] = cv::v_min(cv::v_min(a, b), c);
+    a = b;
+    b = c;
+  }
   cv::v_uint8x16 best = cv::v_setzero_u8();
   for (int i = 0; i < 16; ++i)
-    best = cv::v_max(best, cv::v_min(cv::v_min(m4[i], m4[(i + 4) & 15]), d[(i + 8) & 15]));
+    best = cv::v_max(best, cv::v_min(cv::v_min(m3[i], m3[(i + 3) & 15]), m3[(i + 6) & 15]));
   return best;
 }
 #endif
@@ -75,26 +85,46 @@ namespace {
 // be both is the dark polarity scored again for all lanes. The score of a
 // lane is max(bright, dark); a polarity failing its pre-test is <= threshold,
 // so leaving it out never changes a corner's score.
-void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int threshold, int x,
-                   unsigned lane_keep, std::uint8_t* scores, std::uint16_t* xs, int* n) {
+CV_ALWAYS_INLINE void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int threshold,
+                                    int x, unsigned lane_keep, std::uint8_t* scores,
+                                    std::uint16_t* xs, int* n) {
   const cv::v_uint8x16 tv = cv::v_setall_u8(static_cast<std::uint8_t>(threshold));
   const cv::v_uint8x16 v = cv::v_load(q);
   const cv::v_uint8x16 hi = v + tv, lo = v - tv;  // saturating
   const cv::v_uint8x16 c0 = cv::v_load(q + off[0]), c4 = cv::v_load(q + off[4]);
   const cv::v_uint8x16 c8 = cv::v_load(q + off[8]), c12 = cv::v_load(q + off[12]);
-  const cv::v_uint8x16 bright = ((c0 > hi) | (c8 > hi)) & ((c4 > hi) | (c12 > hi));
-  const cv::v_uint8x16 dark = ((c0 < lo) | (c8 < lo)) & ((c4 < lo) | (c12 < lo));
-  if (!cv::v_check_any(bright | dark)) return;
-  cv::v_uint8x16 d[16];
+  // (c0 > hi | c8 > hi) & (c4 > hi | c12 > hi) as one comparison of
+  // min(max(c0, c8), max(c4, c12)) with hi, kept as a saturating difference
+  // (non-zero = passes): fewer operations on the path most blocks leave by.
+  const cv::v_uint8x16 zero = cv::v_setzero_u8();
+  const cv::v_uint8x16 over = cv::v_min(cv::v_max(c0, c8), cv::v_max(c4, c12)) - hi;
+  const cv::v_uint8x16 under = lo - cv::v_max(cv::v_min(c0, c8), cv::v_min(c4, c12));
+  if (cv::v_signmask((over | under) == zero) == 0xFFFF) return;
+  // Second pre-test, on the 8 even circle pixels: a 9-arc holds 4 or 5
+  // consecutive ones, so a corner needs 4 consecutive even pixels all above
+  // hi (or all below lo). Halves the blocks scored in full at the strict
+  // threshold, and picks each lane's polarity more tightly.
+  const cv::v_uint8x16 e[8] = {c0, cv::v_load(q + off[2]),  c4,  cv::v_load(q + off[6]),
+                               c8, cv::v_load(q + off[10]), c12, cv::v_load(q + off[14])};
+  cv::v_uint8x16 lo2[8], hi2[8];  // min / max of even neighbours (i, i + 1)
+  for (int i = 0; i < 8; ++i) {
+    lo2[i] = cv::v_min(e[i], e[(i + 1) & 7]);
+    hi2[i] = cv::v_max(e[i], e[(i + 1) & 7]);
+  }
+  cv::v_uint8x16 best_low = zero, best_high = cv::v_setall_u8(255);
+  for (int i = 0; i < 8; ++i) {
+    best_low = cv::v_max(best_low, cv::v_min(lo2[i], lo2[(i + 2) & 7]));
+    best_high = cv::v_min(best_high, cv::v_max(hi2[i], hi2[(i + 2) & 7]));
+  }
+  const cv::v_uint8x16 over4 = best_low - hi, under4 = lo - best_high;
+  if (cv::v_signmask((over4 | under4) == zero) == 0xFFFF) return;
+  const cv::v_uint8x16 bright = ~(over4 == zero), dark = ~(under4 == zero);
   // Lanes that can only be dark: inverted.
   const cv::v_uint8x16 flip = dark & ~bright;
-  const cv::v_uint8x16 vf = v ^ flip;
-  for (int i = 0; i < 16; ++i) d[i] = (cv::v_load(q + off[i]) ^ flip) - vf;  // saturating
-  cv::v_uint8x16 score = best_arc_min_simd(d);
+  cv::v_uint8x16 score = best_arc_min_simd(q, off, flip, v ^ flip);
   if (cv::v_check_any(bright & dark)) {
-    const cv::v_uint8x16 vi = ~v;
-    for (int i = 0; i < 16; ++i) d[i] = ~cv::v_load(q + off[i]) - vi;
-    score = cv::v_max(score, best_arc_min_simd(d));
+    const cv::v_uint8x16 all = cv::v_setall_u8(255);
+    score = cv::v_max(score, best_arc_min_simd(q, off, all, v ^ all));
   }
   // A lane is a corner iff its score exceeds the threshold.
   unsigned mask = static_cast<unsigned>(cv::v_signmask(score > tv)) & lane_keep;
@@ -113,16 +143,31 @@ void score_block16(const std::uint8_t* q, const std::ptrdiff_t* off, int thresho
 #endif
 
 void Fast9Detector::score_row(GrayView image, int y, int threshold, int x_begin, int x_end,
-                              const std::uint8_t* allowed, std::uint8_t* scores,
+                              const std::uint8_t* allowed, int allowed_chunks, std::uint8_t* scores,
                               std::uint16_t* xs, int* n) {
   const std::uint8_t* p = image.row(y);
   int x = x_begin;
 #if CV_SIMD128
   std::ptrdiff_t off[16];
   for (int i = 0; i < 16; ++i) off[i] = kCircleDy[i] * image.stride + kCircleDx[i];
-  for (; x + 16 <= x_end; x += 16) {
-    if (allowed && !(allowed[x >> 4] | allowed[(x + 15) >> 4])) continue;
+  while (x + 16 <= x_end) {
+    if (allowed) {
+      const int c = x >> 4;
+      std::uint64_t closed8 = 1;
+      if (c + 8 <= allowed_chunks) std::memcpy(&closed8, allowed + c, sizeof closed8);
+      if (closed8 == 0) {
+        // Chunks c..c+7 all closed (the relaxed passes leave most chunks
+        // closed): jump to the first block reaching chunk c + 8.
+        x += ((16 * (c + 8) - 15 - x) + 15) / 16 * 16;
+        continue;
+      }
+      if (!(allowed[c] | allowed[(x + 15) >> 4])) {
+        x += 16;
+        continue;
+      }
+    }
     score_block16(p + x, off, threshold, x, 0xFFFFu, scores, xs, n);
+    x += 16;
   }
   // Tail: one overlapping block ending at x_end, only the lanes not yet seen.
   if (x < x_end && x_end - 16 >= x_begin) {
@@ -164,7 +209,8 @@ int Fast9Detector::detect(GrayView image, int threshold, int border, const std::
   for (int y = border; y <= h - border; ++y) {
     if (y < h - border) {
       const std::uint8_t* arow = allowed ? allowed + static_cast<std::ptrdiff_t>(y) * allowed_stride : nullptr;
-      score_row(image, y, threshold, border, w - border, arow, srow[2], xrow[2], &nrow[2]);
+      score_row(image, y, threshold, border, w - border, arow, allowed_stride, srow[2], xrow[2],
+                &nrow[2]);
     }
     const std::uint8_t *up = srow[0], *mid = srow[1], *dn = srow[2];
     for (int i = 0; i < nrow[1] && count < capacity; ++i) {

@@ -33,13 +33,15 @@ class Fast9Detector {
   // after 3x3 non-maximum suppression, appended to out[0..capacity) in raster
   // order; returns the count (stops at capacity). allowed (may be null) holds
   // one byte per 16-pixel column chunk (x >> 4) per row, allowed_stride bytes
-  // apart: chunks with 0 are skipped.
+  // apart: chunks with 0 are skipped (rows are read up to allowed_stride
+  // bytes, eight at a time).
   int detect(GrayView image, int threshold, int border, const std::uint8_t* allowed,
              int allowed_stride, FastCorner* out, int capacity);
 
  private:
   void score_row(GrayView image, int y, int threshold, int x_begin, int x_end,
-                 const std::uint8_t* allowed, std::uint8_t* scores, std::uint16_t* xs, int* n);
+                 const std::uint8_t* allowed, int allowed_chunks, std::uint8_t* scores,
+                 std::uint16_t* xs, int* n);
   std::vector<std::uint8_t> score_rows_;   // 3 rolling rows of scores (0: no corner)
   std::vector<std::uint16_t> corner_xs_;   // 3 rolling lists of corner columns
   int max_width_ = 0;

@@ -129,7 +129,7 @@ Status ImagePyramid::configure(int width, int height, int levels, float scale_fa
     const int w = std::max(1, static_cast<int>(std::lround(width / static_cast<double>(scale_[k]))));
     const int h = std::max(1, static_cast<int>(std::lround(height / static_cast<double>(scale_[k]))));
     levels_img_[k].allocate(w, h);
-    smooth_img_[k].allocate(w, h);
+    smooth_img_[k].allocate(width, h);  // rows of the level-0 width: one stride for all levels
     if (k > 0) {
       make_axis_table(w, levels_img_[k - 1].width(), tables_[k].x0, tables_[k].wx);
       make_axis_table(h, levels_img_[k - 1].height(), tables_[k].y0, tables_[k].wy);
@@ -182,13 +182,23 @@ void ImagePyramid::horizontal_blend(const std::uint16_t* tmp, const ResizeTables
 #if CV_SIMD128
   const std::int16_t* wpair = t.wpair.data();
   const cv::v_int32x4 half = cv::v_setall_s32(8192);
+  // (tmp[x0], tmp[x0 + 1]) as one 32-bit load each, assembled in registers:
+  // going through a stack array would make every vector load wait on four
+  // narrower stores (no store-to-load forwarding).
+  const auto pair = [tmp](std::int32_t x) {
+    std::uint32_t v;
+    std::memcpy(&v, tmp + x, sizeof v);
+    return v;
+  };
   for (; i + 16 <= width; i += 16) {
-    alignas(16) std::uint32_t pairs[16];  // (tmp[x0], tmp[x0 + 1]) as one 32-bit load each
-    for (int j = 0; j < 16; ++j) std::memcpy(&pairs[j], tmp + x0[i + j], sizeof(std::uint32_t));
-    const std::int16_t* p16 = reinterpret_cast<const std::int16_t*>(pairs);
+    const std::int32_t* xi = x0 + i;
     cv::v_int32x4 s[4];
-    for (int q = 0; q < 4; ++q)
-      s[q] = cv::v_shr<14>(cv::v_dotprod(cv::v_load(p16 + 8 * q), cv::v_load(wpair + 2 * i + 8 * q)) + half);
+    for (int q = 0; q < 4; ++q) {
+      const cv::v_uint32x4 pairs(pair(xi[4 * q]), pair(xi[4 * q + 1]), pair(xi[4 * q + 2]),
+                                 pair(xi[4 * q + 3]));
+      const cv::v_int16x8 w = cv::v_load(wpair + 2 * i + 8 * q);
+      s[q] = cv::v_shr<14>(cv::v_dotprod(cv::v_reinterpret_as_s16(pairs), w) + half);
+    }
     cv::v_store(out + i, cv::v_pack_u(cv::v_pack(s[0], s[1]), cv::v_pack(s[2], s[3])));
   }
 #endif
@@ -211,7 +221,7 @@ bool ImagePyramid::build_levels(GrayView image) {
 bool ImagePyramid::build(GrayView image) {
   if (!build_levels(image)) return false;
   for (int k = 0; k < levels_; ++k)
-    gaussian_blur7(levels_img_[k].cview(), smooth_img_[k].view(), blur_tmp_.data());
+    gaussian_blur7(levels_img_[k].cview(), smooth_view(k), blur_tmp_.data());
   return true;
 }
 
@@ -221,7 +231,7 @@ bool ImagePyramid::build(GrayView image) {
 // so the result is identical.
 void ImagePyramid::smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x) {
   const GrayView src = levels_img_[k].cview();
-  const ImageView<std::uint8_t> dst = smooth_img_[k].view();
+  const ImageView<std::uint8_t> dst = smooth_view(k);
   const int w = src.width, h = src.height;
   const int n_tx = std::min(tiles_x, (w + kSmoothTilePx - 1) / kSmoothTilePx);
   std::uint8_t* p_base = blur_tmp_.data() + 3;  // p_base[i] = column x0 + i of the run

@@ -167,12 +167,40 @@ float OrbDescriptor::orientation_deg(GrayView level, int x, int y) {
   return a;
 }
 
+bool OrbDescriptor::set_stride(std::ptrdiff_t stride) {
+  offsets_stride_ = 0;
+  constexpr int kReach = 14;  // pattern radius (the disc of random_point)
+  if (stride <= 0 || stride * kReach + kReach > 32767) {
+    offsets_.clear();
+    return false;
+  }
+  offsets_.assign(static_cast<std::size_t>(kOrbAngleBins) * 512, 0);
+  for (int k = 0; k < kOrbAngleBins; ++k)
+    for (int i = 0; i < 256; ++i) {
+      const PointPair& p = rotated_[static_cast<std::size_t>(k)][static_cast<std::size_t>(i)];
+      std::int16_t* o = offsets_.data() + static_cast<std::ptrdiff_t>(k) * 512 + 2 * i;
+      o[0] = static_cast<std::int16_t>(p.ay * stride + p.ax);
+      o[1] = static_cast<std::int16_t>(p.by * stride + p.bx);
+    }
+  offsets_stride_ = stride;
+  return true;
+}
+
 void OrbDescriptor::compute(GrayView smoothed_level, int x, int y, float angle_deg,
                             std::uint8_t* out32) const {
   int bin = static_cast<int>(std::lround(angle_deg * (kOrbAngleBins / 360.0f)));
   bin = ((bin % kOrbAngleBins) + kOrbAngleBins) % kOrbAngleBins;
-  const std::array<PointPair, 256>& pat = rotated_[static_cast<std::size_t>(bin)];
   const std::uint8_t* c = smoothed_level.row(y) + x;
+  if (offsets_stride_ != 0 && smoothed_level.stride == offsets_stride_) {
+    const std::int16_t* o = offsets_.data() + static_cast<std::ptrdiff_t>(bin) * 512;
+    for (int byte = 0; byte < 32; ++byte, o += 16) {
+      unsigned v = 0;
+      for (int bit = 0; bit < 8; ++bit) v |= (c[o[2 * bit]] < c[o[2 * bit + 1]] ? 1u : 0u) << bit;
+      out32[byte] = static_cast<std::uint8_t>(v);
+    }
+    return;
+  }
+  const std::array<PointPair, 256>& pat = rotated_[static_cast<std::size_t>(bin)];
   const std::ptrdiff_t st = smoothed_level.stride;
   for (int byte = 0; byte < 32; ++byte) {
     unsigned v = 0;

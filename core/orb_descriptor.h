@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstdint>
+#include <vector>
 
 #include "core/feature_set.h"
 #include "core/image.h"
@@ -32,6 +33,13 @@ class OrbDescriptor {
   // (x, y) must be >= 15 pixels inside the image.
   void compute(GrayView smoothed_level, int x, int y, float angle_deg, std::uint8_t* out32) const;
 
+  // Precomputes the rotated pattern as pixel offsets for images of this row
+  // stride (configure time: allocates 128 KB). compute() on an image with
+  // that stride then reads one offset per point instead of (dx, dy) times
+  // the stride; same descriptors. Strides above 2340 (offsets past int16)
+  // keep the (dx, dy) path. Returns whether the offsets are in use.
+  bool set_stride(std::ptrdiff_t stride);
+
   // The unrotated pattern (for tests): pair i is (a[i], b[i]), each (dx, dy).
   struct PointPair {
     std::int8_t ax, ay, bx, by;
@@ -41,6 +49,8 @@ class OrbDescriptor {
  private:
   std::array<PointPair, 256> pattern_{};
   std::array<std::array<PointPair, 256>, kOrbAngleBins> rotated_{};
+  std::vector<std::int16_t> offsets_;  // per bin: 256 x (a, b) pixel offsets for offsets_stride_
+  std::ptrdiff_t offsets_stride_ = 0;  // 0: no offsets
 };
 
 }  // namespace st

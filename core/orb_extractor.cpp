@@ -6,6 +6,8 @@
 #include <initializer_list>
 #include <string>
 
+#include <opencv2/core/hal/intrin.hpp>
+
 namespace st {
 namespace {
 
@@ -116,6 +118,8 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
     return make_error("OrbConfig.organ_margin_px must be in [0, 256]");
   if (Status s = pyramid_.configure(width, height, c.levels, c.scale_factor); !s) return s;
   if (Status s = fast_.configure(width); !s) return s;
+  // false (the slower (dx, dy) path) only for frames beyond 2340 px wide
+  descriptor_.set_stride(pyramid_.smoothed(0).stride);
   config_ = c;
   width_ = width;
   height_ = height;
@@ -466,12 +470,33 @@ bool OrbExtractor::close_spread_cells(int level, int n, int target) {
 
 // Harris corner response (k = 0.04) over a 7x7 window of central-difference
 // gradients on the level image; candidates are >= 16 pixels inside.
+// Integer sums (<= 7 * 7 * 255^2 < 2^31) are exact, so the SIMD path (one
+// row of 7 gradients per vector, the 8th lane zeroed) equals the scalar one.
 void OrbExtractor::harris_keys(int level, int n) {
   const GrayView img = pyramid_.level(level);
   const std::ptrdiff_t st = img.stride;
   for (int i = 0; i < n; ++i) {
     Candidate& c = cand_[static_cast<std::size_t>(i)];
     std::int64_t sxx = 0, syy = 0, sxy = 0;
+#if CV_SIMD128
+    const cv::v_int16x8 keep7 = cv::v_int16x8(-1, -1, -1, -1, -1, -1, -1, 0);
+    cv::v_int32x4 axx = cv::v_setzero_s32(), ayy = cv::v_setzero_s32(), axy = cv::v_setzero_s32();
+    for (int dy = -3; dy <= 3; ++dy) {
+      const std::uint8_t* p = img.row(c.y + dy) + c.x - 3;  // lanes dx = -3 .. 4
+      const cv::v_int16x8 gx = (cv::v_reinterpret_as_s16(cv::v_load_expand(p + 1)) -
+                                cv::v_reinterpret_as_s16(cv::v_load_expand(p - 1))) &
+                               keep7;
+      const cv::v_int16x8 gy = (cv::v_reinterpret_as_s16(cv::v_load_expand(p + st)) -
+                                cv::v_reinterpret_as_s16(cv::v_load_expand(p - st))) &
+                               keep7;
+      axx += cv::v_dotprod(gx, gx);
+      ayy += cv::v_dotprod(gy, gy);
+      axy += cv::v_dotprod(gx, gy);
+    }
+    sxx = cv::v_reduce_sum(axx);
+    syy = cv::v_reduce_sum(ayy);
+    sxy = cv::v_reduce_sum(axy);
+#else
     for (int dy = -3; dy <= 3; ++dy) {
       const std::uint8_t* p = img.row(c.y + dy) + c.x;
       for (int dx = -3; dx <= 3; ++dx) {
@@ -482,6 +507,7 @@ void OrbExtractor::harris_keys(int level, int n) {
         sxy += gx * gy;
       }
     }
+#endif
     const double a = static_cast<double>(sxx), b = static_cast<double>(syy), d = static_cast<double>(sxy);
     c.key = static_cast<float>(a * b - d * d - 0.04 * (a + b) * (a + b));
   }

@@ -1,6 +1,7 @@
 #include "core/valid_mask.h"
 
 #include <algorithm>
+#include <bit>
 #include <string>
 
 #include "core/mask_morphology.h"
@@ -159,7 +160,17 @@ GrayView ValidMaskBuilder::build(GrayView frame) {
     const std::uint8_t* mx = max_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
     std::uint8_t* sat = sat_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
     int count = 0;
-    for (int x = 0; x < mask_w_; ++x) {
+    int x = 0;
+#if CV_SIMD128
+    const cv::v_uint8x16 thr_v = cv::v_setall_u8(thr);
+    // 16 mask pixels per compare (the scalar loop was ~10% of build()).
+    for (; x + 16 <= mask_w_; x += 16) {
+      const cv::v_uint8x16 s = cv::v_load(mx + x) >= thr_v;
+      cv::v_store(sat + x, s);
+      count += std::popcount(static_cast<unsigned>(cv::v_signmask(s)));
+    }
+#endif
+    for (; x < mask_w_; ++x) {
       sat[x] = mx[x] >= thr ? 255 : 0;
       count += sat[x] & 1;
     }
