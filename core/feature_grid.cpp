@@ -43,8 +43,8 @@ void FeatureGrid::build(const FeatureSet& f) {
   }
 }
 
-int FeatureGrid::query(const FeatureSet& /*features: the set given to build()*/, float x, float y, float radius, int min_octave,
-                       int max_octave, int* out, int capacity) const {
+int FeatureGrid::query(float x, float y, float radius, int min_octave, int max_octave, int* out,
+                       int capacity) const {
   if (!(radius >= 0.f) || !std::isfinite(x) || !std::isfinite(y) || cells_x_ == 0) return 0;
   const float cp = static_cast<float>(cell_px_);
   const int cx0 = std::max(0, static_cast<int>(std::floor((x - radius) / cp)));

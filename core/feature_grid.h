@@ -21,11 +21,11 @@ class FeatureGrid {
   // Indexes features (its keypoints must refer to the configured size;
   // keypoints outside the image are clamped into the border cells).
   void build(const FeatureSet& features);
-  // Writes the indices of keypoints with |p - (x, y)| <= radius and octave in
-  // [min_octave, max_octave] (pass -1, -1 for any) to out (at most capacity);
-  // returns how many were written.
-  int query(const FeatureSet& features, float x, float y, float radius, int min_octave,
-            int max_octave, int* out, int capacity) const;
+  // Writes the indices of the last build()'s keypoints with |p - (x, y)| <=
+  // radius and octave in [min_octave, max_octave] (pass -1, -1 for any) to
+  // out (at most capacity); returns how many were written.
+  int query(float x, float y, float radius, int min_octave, int max_octave, int* out,
+            int capacity) const;
 
   int cell_px() const { return cell_px_; }
   int cells_x() const { return cells_x_; }

@@ -131,7 +131,7 @@ int OrbMatcher::search_by_projection(const ProjectedPoint* points, int n, const 
     ref_angles_[static_cast<std::size_t>(i)] = p.ref_angle_deg;
     const int lo = p.predicted_octave < 0 ? -1 : std::max(0, p.predicted_octave - config_.octave_window);
     const int hi = p.predicted_octave < 0 ? -1 : p.predicted_octave + config_.octave_window;
-    const int nc = grid.query(frame, p.x, p.y, p.radius_px, lo, hi, candidates_.data(), kMaxKeypoints);
+    const int nc = grid.query(p.x, p.y, p.radius_px, lo, hi, candidates_.data(), kMaxKeypoints);
     BestTwo b;
     for (int j = 0; j < nc; ++j) {
       const int k = candidates_[static_cast<std::size_t>(j)];

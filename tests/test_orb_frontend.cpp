@@ -264,7 +264,7 @@ TEST_CASE("orb feature grid: query equals a brute-force radius search") {
   for (int q = 0; q < 200; ++q) {
     const float x = ux(rng), y = uy(rng), r = static_cast<float>(q % 40);
     const int lo = q % 3 == 0 ? -1 : 2, hi = q % 3 == 0 ? -1 : 4;
-    const int n = g.query(*f, x, y, r, lo, hi, out.data(), kMaxKeypoints);
+    const int n = g.query(x, y, r, lo, hi, out.data(), kMaxKeypoints);
     std::set<int> got(out.begin(), out.begin() + n), want;
     for (int i = 0; i < f->count; ++i) {
       const Keypoint& k = f->keypoints[static_cast<std::size_t>(i)];

@@ -58,7 +58,7 @@ TEST_CASE("orb feature grid: a small output capacity is respected and filled wit
   for (int capacity : {0, 1, 3, 17, 64}) {
     std::vector<int> out(static_cast<std::size_t>(capacity) + 8, -7);  // 8 guard entries
     const float x = 160.f, y = 120.f, r = 40.f;
-    const int n = g.query(*f, x, y, r, 1, 2, out.data(), capacity);
+    const int n = g.query(x, y, r, 1, 2, out.data(), capacity);
     int hits = 0;
     for (int i = 0; i < f->count; ++i) {
       const st::Keypoint& k = f->keypoints[static_cast<std::size_t>(i)];
