@@ -48,6 +48,17 @@ BundleAdjusterOptions options(double w_shape) {
   return o;
 }
 
+// A per-point observation cap (a BundleAdjusterOptions member) outside
+// [0, kMaxObservationsPerPointCap] is refused by configure().
+void check_cap_bounds(BundleAdjusterOptions o, int BundleAdjusterOptions::*cap, const Mesh& mesh, const Pinhole& K,
+                      const BaJob& job) {
+  BundleAdjuster ba;
+  for (const int bad : {-1, kMaxObservationsPerPointCap + 1}) {
+    o.*cap = bad;
+    CHECK_FALSE(ba.configure(o, mesh, K, job.point_capacity(), job.observation_capacity()).ok());
+  }
+}
+
 }  // namespace
 
 TEST_CASE("ba window: perturbed poses and points come back; the shape residual keeps points on the mesh") {
@@ -176,10 +187,7 @@ TEST_CASE("ba window: observations capped to the newest k per point still bring 
   CHECK(w.job.summary.observations < w.job.observation_count);
   CHECK(end.rot_deg < 0.5 * start.rot_deg);
   CHECK(end.point_mm < 0.5 * start.point_mm);
-  for (const int bad : {-1, kMaxObservationsPerPointCap + 1}) {
-    o.max_observations_per_point = bad;
-    CHECK_FALSE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
-  }
+  check_cap_bounds(o, &BundleAdjusterOptions::max_observations_per_point, mesh, K, w.job);
 }
 
 TEST_CASE("ba window: observations from fixed keyframes capped per point; the window still comes back") {
@@ -223,10 +231,7 @@ TEST_CASE("ba window: observations from fixed keyframes capped per point; the wi
     CHECK(end.rot_deg < 0.2 * start.rot_deg);
     CHECK(end.trans_mm < 0.2 * start.trans_mm);
     CHECK(end.point_mm < (w_shape > 0 ? 0.5 : 1.0) * start.point_mm);
-    for (const int bad : {-1, kMaxObservationsPerPointCap + 1}) {
-      o.max_fixed_observations_per_point = bad;
-      CHECK_FALSE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
-    }
+    check_cap_bounds(o, &BundleAdjusterOptions::max_fixed_observations_per_point, mesh, K, w.job);
   }
 }
 
