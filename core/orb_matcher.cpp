@@ -64,6 +64,7 @@ Status OrbMatcher::configure(const MatchConfig& c) {
   claim_dist_.assign(kMaxKeypoints, 0);
   candidates_.assign(kMaxKeypoints, 0);
   dist_scratch_.assign(n, 0);
+  best_dist_.assign(n, kNoCandidate);
   ref_angles_.assign(n, -1.f);
   rot_bin_count_.assign(static_cast<std::size_t>(c.rotation_bins), 0);
   return Status::Ok();
@@ -119,7 +120,8 @@ void OrbMatcher::orientation_filter(const float* ref_angle, const FeatureSet& fr
 }
 
 int OrbMatcher::search_by_projection(const ProjectedPoint* points, int n, const FeatureSet& frame,
-                                     const FeatureGrid& grid, int* match, int* distance) {
+                                     const FeatureGrid& grid, int* match, int* distance,
+                                     const std::uint8_t* active) {
   stats_ = MatchStats{};
   n = std::clamp(n, 0, kMaxMapPoints);
   if (!distance) distance = dist_scratch_.data();
@@ -129,6 +131,8 @@ int OrbMatcher::search_by_projection(const ProjectedPoint* points, int n, const 
     match[i] = -1;
     distance[i] = 256;
     ref_angles_[static_cast<std::size_t>(i)] = p.ref_angle_deg;
+    best_dist_[static_cast<std::size_t>(i)] = kNoCandidate;
+    if (active && !active[i]) continue;
     const int lo = p.predicted_octave < 0 ? -1 : std::max(0, p.predicted_octave - config_.octave_window);
     const int hi = p.predicted_octave < 0 ? -1 : p.predicted_octave + config_.octave_window;
     const int nc = grid.query(p.x, p.y, p.radius_px, lo, hi, candidates_.data(), kMaxKeypoints);
@@ -138,6 +142,7 @@ int OrbMatcher::search_by_projection(const ProjectedPoint* points, int n, const 
       b.add(hamming256(p.descriptor.data(), frame.descriptors[static_cast<std::size_t>(k)].data()), k);
     }
     stats_.candidates += nc;
+    best_dist_[static_cast<std::size_t>(i)] = static_cast<std::uint16_t>(std::min(b.best, 257));
     if (accept(b)) claim(i, b.best_k, b.best, match, distance);
   }
   return finish(frame, n, match);

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "core/feature_grid.h"
@@ -54,10 +55,18 @@ class OrbMatcher {
 
   // For each of n points (n <= kMaxMapPoints), the index of its matching
   // keypoint in frame, or -1, into match_of_point[n] (distances into
-  // distance_of_point[n] if not null). grid must be built on frame.
-  // Returns the number of matches.
+  // distance_of_point[n] if not null). grid must be built on frame. Points
+  // with active[i] == 0 (when active is not null) are not searched: no
+  // match. Returns the number of matches.
   int search_by_projection(const ProjectedPoint* points, int n, const FeatureSet& frame,
-                           const FeatureGrid& grid, int* match_of_point, int* distance_of_point);
+                           const FeatureGrid& grid, int* match_of_point, int* distance_of_point,
+                           const std::uint8_t* active = nullptr);
+  // Per point of the last search_by_projection: the smallest Hamming
+  // distance among its candidates (kNoCandidate if it had none or was not
+  // searched), whether or not it matched. A point whose best exceeds
+  // config().max_distance cannot match any subset of those candidates.
+  static constexpr std::uint16_t kNoCandidate = 257;
+  std::span<const std::uint16_t> best_distances() const { return best_dist_; }
 
   // For each keypoint of query, the index of its match in train or -1, into
   // match_of_query[query.count]. Orientation check uses both sets' angles.
@@ -89,6 +98,7 @@ class OrbMatcher {
   std::vector<std::int32_t> claim_dist_;
   std::vector<std::int32_t> candidates_;     // grid query scratch
   std::vector<std::int32_t> dist_scratch_;   // distances when the caller passes none
+  std::vector<std::uint16_t> best_dist_;     // per point of the last search: best candidate distance
   std::vector<float> ref_angles_;            // per point / query keypoint
   std::vector<std::int32_t> rot_bin_count_;
 };

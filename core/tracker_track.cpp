@@ -49,6 +49,7 @@ bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
 // the scale range and 60 degrees of the creating view, and (with the raster
 // rendered near that pose) not hidden behind the mesh.
 int TrackerImpl::select_local_map(const SE3& T_camera_model, bool check_occlusion) {
+  searched_valid_ = false;  // a new selection: no earlier search covers it
   const Vec3 centre = camera_centre(T_camera_model);
   const double log_scale = std::log(static_cast<double>(config_.scale_factor));
   const int capacity = static_cast<int>(projected_.size());
@@ -114,12 +115,30 @@ int TrackerImpl::local_map_slot(const Vec2& ideal, int score, int* n) {
 // Search by projection with radius_px (scaled by the predicted octave) into
 // the correspondence arrays. Returns their count.
 int TrackerImpl::match_local_map(float radius_px) {
+  // A point whose circle now lies inside the circle its last search of this
+  // selection covered, and which found no candidate within max_distance
+  // there, cannot match now (its candidates are a subset): not searched
+  // again. Exact: the matches are the same as searching every point.
+  const bool prune = searched_valid_;
+  const std::span<const std::uint16_t> best = matcher_.best_distances();
+  const int max_distance = matcher_.config().max_distance;
   for (int i = 0; i < local_count_; ++i) {
-    ProjectedPoint& q = projected_[static_cast<std::size_t>(i)];
+    const auto is = static_cast<std::size_t>(i);
+    ProjectedPoint& q = projected_[is];
     q.radius_px = radius_px * octave_scale_[static_cast<std::size_t>(q.predicted_octave)];
+    if (prune) {
+      const float dx = q.x - searched_x_[is], dy = q.y - searched_y_[is];
+      const float slack = searched_r_[is] - q.radius_px - 1e-3f;  // how far the circle may move and stay inside
+      const bool inside = slack >= 0.f && dx * dx + dy * dy <= slack * slack;
+      search_active_[is] = !(inside && best[is] > max_distance);
+    }
+    searched_x_[is] = q.x;
+    searched_y_[is] = q.y;
+    searched_r_[is] = q.radius_px;
   }
+  searched_valid_ = true;
   matcher_.search_by_projection(projected_.data(), local_count_, *features_, grid_, match_of_point_.data(),
-                                dist_of_point_.data());
+                                dist_of_point_.data(), prune ? search_active_.data() : nullptr);
   int c = 0;
   for (int i = 0; i < local_count_ && c < kMaxKeypoints; ++i) {
     const int k = match_of_point_[static_cast<std::size_t>(i)];

@@ -2,7 +2,9 @@
 // against OpenCV's own Hamming norm, on random and extreme descriptors.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <random>
@@ -73,4 +75,74 @@ TEST_CASE("orb feature grid: a small output capacity is respected and filled wit
     }
     for (std::size_t j = static_cast<std::size_t>(capacity); j < out.size(); ++j) CHECK(out[j] == -7);
   }
+}
+
+// The tracker's refine pass skips points that found no candidate within
+// max_distance in the previous, larger search (tracker_track.cpp): that
+// relies on best_distances() being the true minimum over the candidates,
+// and on inactive points leaving the other points' matches unchanged.
+TEST_CASE("orb matcher: best_distances is the candidates' minimum; inactive points change no other match") {
+  auto f = std::make_unique<st::FeatureSet>();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> ux(0.f, 640.f), uy(0.f, 480.f);
+  std::uniform_int_distribution<int> byte(0, 255), bit(0, 255);
+  f->count = 1200;
+  for (int i = 0; i < f->count; ++i) {
+    f->keypoints[static_cast<std::size_t>(i)] = st::Keypoint{ux(rng), uy(rng), 10.f, 1.f, i % 3};
+    for (auto& b : f->descriptors[static_cast<std::size_t>(i)]) b = static_cast<std::uint8_t>(byte(rng));
+  }
+  st::FeatureGrid grid;
+  REQUIRE(grid.configure(640, 480, 16));
+  grid.build(*f);
+  // Half the points copy a keypoint's descriptor with a few bits flipped
+  // (matchable), half are random (best distance ~90-110 against max 60).
+  const int n = 800;
+  std::vector<st::ProjectedPoint> pts(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    st::ProjectedPoint& p = pts[static_cast<std::size_t>(i)];
+    const int k = static_cast<int>(rng() % static_cast<unsigned>(f->count));
+    const st::Keypoint& kp = f->keypoints[static_cast<std::size_t>(k)];
+    p.x = kp.x + 3.f;
+    p.y = kp.y - 2.f;
+    p.radius_px = 12.f;
+    p.predicted_octave = kp.octave;
+    p.ref_angle_deg = 10.f;
+    if (i % 2 == 0) {
+      p.descriptor = f->descriptors[static_cast<std::size_t>(k)];
+      for (int j = 0; j < 12; ++j) {
+        const int b = bit(rng);
+        p.descriptor[static_cast<std::size_t>(b / 8)] ^= static_cast<std::uint8_t>(1u << (b % 8));
+      }
+    } else {
+      for (auto& b : p.descriptor) b = static_cast<std::uint8_t>(byte(rng));
+    }
+  }
+  st::MatchConfig mc;
+  mc.max_distance = 60;
+  st::OrbMatcher m;
+  REQUIRE(m.configure(mc));
+  std::vector<int> match_all(static_cast<std::size_t>(n)), match_some(static_cast<std::size_t>(n));
+  const int matched = m.search_by_projection(pts.data(), n, *f, grid, match_all.data(), nullptr);
+  CHECK(matched > n / 4);
+  const std::vector<std::uint16_t> best(m.best_distances().begin(), m.best_distances().begin() + n);
+  std::vector<std::uint8_t> active(static_cast<std::size_t>(n));
+  int unmatchable = 0;
+  for (int i = 0; i < n; ++i) {
+    const st::ProjectedPoint& p = pts[static_cast<std::size_t>(i)];
+    int expected = st::OrbMatcher::kNoCandidate;  // brute force over the window the grid serves
+    for (int k = 0; k < f->count; ++k) {
+      const st::Keypoint& kp = f->keypoints[static_cast<std::size_t>(k)];
+      const float dx = kp.x - p.x, dy = kp.y - p.y;
+      if (std::abs(kp.octave - p.predicted_octave) > mc.octave_window || dx * dx + dy * dy > p.radius_px * p.radius_px) continue;
+      expected = std::min(expected, st::hamming256(p.descriptor.data(), f->descriptors[static_cast<std::size_t>(k)].data()));
+    }
+    CHECK(best[static_cast<std::size_t>(i)] == expected);
+    active[static_cast<std::size_t>(i)] = best[static_cast<std::size_t>(i)] <= mc.max_distance ? 1 : 0;
+    unmatchable += active[static_cast<std::size_t>(i)] ? 0 : 1;
+  }
+  CHECK(unmatchable > n / 4);
+  CHECK(m.search_by_projection(pts.data(), n, *f, grid, match_some.data(), nullptr, active.data()) == matched);
+  CHECK(match_some == match_all);
+  for (int i = 0; i < n; ++i)
+    if (!active[static_cast<std::size_t>(i)]) CHECK(m.best_distances()[static_cast<std::size_t>(i)] == st::OrbMatcher::kNoCandidate);
 }
