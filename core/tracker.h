@@ -72,6 +72,8 @@ struct TrackerConfig {
   int reloc_keyframes_per_frame = 2;    // brute-force budget per lost frame
   int strict_frames = 5;                // frames after relocalisation under strict gates
   int dead_reckoning_frames = 10;       // lost: predict with the last velocity for this many frames
+  double dead_reckoning_decay = 0.7;    // lost: the carried velocity's twist shrinks by this per frame
+                                        // (a fast turn that broke tracking ends; 1: constant velocity)
   bool use_image_motion = true;         // rotation prior from the whole-image shift (core/image_motion.h)
   double strict_inlier_factor = 1.5;    // min_inliers multiplier when strict
   int min_spread_cells = 3;             // strict: inliers must occupy this many cells of a 4x4 grid

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <vector>
 
@@ -77,6 +78,11 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
   c = good;
   c.local_map_per_cell = 9;
   rejects(c, "local_map_per_cell");
+  for (double decay : {0.0, 1.5, std::nan("")}) {
+    c = good;
+    c.dead_reckoning_decay = decay;
+    rejects(c, "relocalisation settings");
+  }
   Pinhole bad = seq.K;
   bad.fx = -1;
   CHECK_FALSE(t.configure(good, seq.mesh, CameraModel(bad, Distortion{}), seq.T_camera_model[0]).ok());
