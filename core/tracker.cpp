@@ -74,6 +74,7 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
       !(c.ba_max_time_s > 0) || !(c.ba_global_max_time_s > 0) || c.ba_max_observations < 1)
     return err("bundle adjustment settings out of range (w_shape >= 0, window in [2, kMaxKeyframes], limits > 0)");
   if (c.local_map_per_cell < 0 || c.local_map_per_cell > 8) return err("local_map_per_cell outside [0, 8]");
+  if (!(c.keyframe_max_motion_px > 0.f)) return err("keyframe_max_motion_px must be positive");
   if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
       c.min_spread_cells < 0 || c.min_spread_cells > 16 || !(c.dead_reckoning_decay > 0.0) ||
       !(c.dead_reckoning_decay <= 1.0))

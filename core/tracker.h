@@ -68,6 +68,8 @@ struct TrackerConfig {
   double keyframe_tracked_ratio = 0.7;
   double keyframe_angle_deg = 10.0;
   double keyframe_distance_ratio = 0.1;  // camera travel / median inlier depth
+  float keyframe_max_motion_px = 40.f;    // no keyframe from a frame whose view moved more than this
+                                          // since the last one (level-0 px at the tracked depth): blurred
   // Relocalisation and the stricter gates after it.
   int reloc_keyframes_per_frame = 2;    // brute-force budget per lost frame
   int strict_frames = 5;                // frames after relocalisation under strict gates

@@ -387,15 +387,20 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   r->pose_valid = true;
   r->T_camera_model = e.T_camera_model;
   velocity_ = state == TrackState::kTracking ? e.T_camera_model * T_last_.inverse() : SE3();
+  // How far the view moved since the last frame (level-0 px): blur.
+  const double motion_px = state == TrackState::kTracking ? image_shift_px(T_last_, e.T_camera_model) : 0.0;
   T_last_ = e.T_camera_model;
   last_inliers_ = e.inliers;
   last_depth_mm_ = e.mean_depth_mm;
   lost_ = false;
   lost_frames_ = 0;
   update_counters(frame_index);
+  // No keyframe from a frame that moved fast: it is blurred, its pose is
+  // less accurate, and the keyframe's mesh-depth points would carry that
+  // error into the map for good (fast seed 4: 1-3 deg off after a burst).
   if (strict_frames_left_ > 0) {
     --strict_frames_left_;
-  } else if (need_keyframe(e)) {
+  } else if (motion_px <= static_cast<double>(config_.keyframe_max_motion_px) && need_keyframe(e)) {
     r->keyframe = add_keyframe(e.T_camera_model, frame_index, true) >= 0;
   }
   lap(Stage::kMap, &t, r);

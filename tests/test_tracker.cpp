@@ -78,6 +78,11 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
   c = good;
   c.local_map_per_cell = 9;
   rejects(c, "local_map_per_cell");
+  for (float motion : {0.f, -1.f, std::nanf("")}) {
+    c = good;
+    c.keyframe_max_motion_px = motion;
+    rejects(c, "keyframe_max_motion_px");
+  }
   for (double decay : {0.0, 1.5, std::nan("")}) {
     c = good;
     c.dead_reckoning_decay = decay;
