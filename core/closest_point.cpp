@@ -382,11 +382,11 @@ void ClosestPointIndex::leaf_search(int first, int count, const Vec3& p, double*
 
 // Nearest-box-first depth-first search. The 4 lane distances are float;
 // a lane (or a stacked entry) is skipped only when its float distance is
-// at least (best + slack)^2 with slack above the float rounding of p and of
-// the subtraction (2^-24 relative to the coordinates, times a margin of
-// >= 5): the true box distance then exceeds the best triangle distance,
-// so no closer triangle is dropped. The result equals the exhaustive
-// minimum over all triangles (tests/test_closest_point.cpp).
+// at least (best + slack)^2. Rounding p to float, the subtractions, squares
+// and the sum move a box distance by at most ~7 * 2^-24 (|p| + extent)
+// = 4.2e-7 (|p| + extent) < slack: the true box distance then exceeds the
+// best triangle distance, so no closer triangle is dropped. The result
+// equals the exhaustive minimum over all triangles (tests/test_closest_point.cpp).
 bool ClosestPointIndex::closest(const Vec3& p_model, SurfacePoint* out) const {
   // Beyond 1e15 mm the float box distances would overflow (refused, as a
   // non-finite point is).
