@@ -53,28 +53,53 @@ bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info,
   return reprojection_cost(K, px_ideal, sqrt_info, min_depth_mm, pose, f, r, J_pose, J_point);
 }
 
+// The same residual as reprojection_residual() (core/reprojection.h), with
+// the Jacobians written out by rows: d r / d p_camera has rows
+// g0 = a (1, 0, -xn), g1 = b (0, 1, -yn) (a = sqrt_info fx / z, b likewise),
+// so the point Jacobian g R and the translation columns g A of the pose
+// Jacobian need no full products, and the left Jacobian's block structure
+// Jl = [A 0; Q A] (A = Jl of SO3) halves the 2x6 * 6x6 product (the
+// innermost kernel of BA: every residual, every evaluation).
 bool reprojection_cost(const Pinhole& K, const Vec2& px_ideal, double sqrt_info, double min_depth_mm,
                        const PoseLinearization& pose, const double* f, double* r, double* J_pose, double* J_point) {
-  const SE3& T = pose.T_camera_model;
-  const Vec3 p_model(f[0], f[1], f[2]);
-  Vec2 e;
-  Mat26 J;
-  if (!reprojection_residual(K, T, p_model, px_ideal, min_depth_mm, &e, (J_pose || J_point) ? &J : nullptr))
-    return false;
-  r[0] = sqrt_info * e[0];
-  r[1] = sqrt_info * e[1];
-  if (J_pose) {
-    Eigen::Map<Mat26r> Jp(J_pose);
-    if (pose.at_origin)
-      Jp = sqrt_info * J;
-    else
-      Jp.noalias() = (sqrt_info * J) * pose.left_jacobian;
-  }
+  const Mat3& R = pose.T_camera_model.rotation();
+  const Vec3 p = R * Vec3(f[0], f[1], f[2]) + pose.T_camera_model.translation();
+  if (!(p.z() > min_depth_mm) || !std::isfinite(p.z())) return false;
+  const double inv_z = 1.0 / p.z();
+  const double xn = p.x() * inv_z, yn = p.y() * inv_z;
+  r[0] = sqrt_info * (K.fx * xn + K.cx - px_ideal.x());
+  r[1] = sqrt_info * (K.fy * yn + K.cy - px_ideal.y());
+  const double a = sqrt_info * K.fx * inv_z, b = sqrt_info * K.fy * inv_z;
   if (J_point) {
-    // d r / d f = d project / d p_camera * R; the v columns of the left
-    // Jacobian are exactly d project / d p_camera.
-    Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> Jf(J_point);
-    Jf.noalias() = (sqrt_info * J.rightCols<3>()) * T.rotation();
+    for (int k = 0; k < 3; ++k) {
+      J_point[k] = a * (R(0, k) - xn * R(2, k));
+      J_point[3 + k] = b * (R(1, k) - yn * R(2, k));
+    }
+  }
+  if (!J_pose) return true;
+  // Rotation columns of the left-perturbation Jacobian: g (-hat(p)).
+  const double w0[3] = {-a * xn * p.y(), a * (p.z() + xn * p.x()), -a * p.y()};
+  const double w1[3] = {-b * (p.z() + yn * p.y()), b * yn * p.x(), b * p.x()};
+  if (pose.at_origin) {
+    for (int k = 0; k < 3; ++k) {
+      J_pose[k] = w0[k];
+      J_pose[6 + k] = w1[k];
+    }
+    J_pose[3] = a, J_pose[4] = 0, J_pose[5] = -a * xn;
+    J_pose[9] = 0, J_pose[10] = b, J_pose[11] = -b * yn;
+    return true;
+  }
+  const Mat6& Jl = pose.left_jacobian;  // [A 0; Q A]
+  for (int k = 0; k < 3; ++k) {
+    // Translation rows of g times the k-th columns of A and Q.
+    const double gA0 = a * (Jl(3, 3 + k) - xn * Jl(5, 3 + k)), gA1 = b * (Jl(4, 3 + k) - yn * Jl(5, 3 + k));
+    const double gQ0 = a * (Jl(3, k) - xn * Jl(5, k)), gQ1 = b * (Jl(4, k) - yn * Jl(5, k));
+    const double wA0 = w0[0] * Jl(0, k) + w0[1] * Jl(1, k) + w0[2] * Jl(2, k);
+    const double wA1 = w1[0] * Jl(0, k) + w1[1] * Jl(1, k) + w1[2] * Jl(2, k);
+    J_pose[k] = wA0 + gQ0;
+    J_pose[6 + k] = wA1 + gQ1;
+    J_pose[3 + k] = gA0;
+    J_pose[9 + k] = gA1;
   }
   return true;
 }

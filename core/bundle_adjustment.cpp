@@ -24,7 +24,10 @@ class PoseCache {
   void reset(const SE3& T0_camera_model) {
     T0_ = T0_camera_model;
     delta_[0] = std::numeric_limits<double>::quiet_NaN();  // NaN != anything: recompute
+    held_.T_camera_model = T0_camera_model;
   }
+  // The linearization at delta = 0, for a held pose (not a parameter block).
+  const PoseLinearization& held() const { return held_; }
   const PoseLinearization& at(const double* delta) const {
     bool same = true;
     for (int k = 0; k < 6; ++k) same = same && delta_[k] == delta[k];
@@ -40,18 +43,38 @@ class PoseCache {
   SE3 T0_;
   mutable double delta_[6] = {std::numeric_limits<double>::quiet_NaN()};
   mutable PoseLinearization lin_;
+  PoseLinearization held_;  // identity left Jacobian, at_origin
 };
 
-class ReprojectionCost final : public ceres::SizedCostFunction<2, 6, 3> {
+// Reprojection residual of one observation. The pose of a held keyframe
+// (fixed, or the gauge keyframe) is not a parameter block: the residual then
+// has the point as its only block (the same rows and point Jacobian; Ceres
+// gathers, checks and skips one block less per residual and evaluation, and
+// the held poses are not in the problem at all). The block sizes are set
+// per solve into a vector reserved at construction: no allocation.
+class ReprojectionCost final : public ceres::CostFunction {
  public:
-  void set(const Pinhole& K, const Vec2& px_ideal, double info, double min_depth_mm, const PoseCache* pose) {
+  ReprojectionCost() {
+    set_num_residuals(2);
+    mutable_parameter_block_sizes()->reserve(2);
+  }
+  void set(const Pinhole& K, const Vec2& px_ideal, double info, double min_depth_mm, const PoseCache* pose,
+           bool held) {
     pose_ = pose;
     K_ = K;
     px_ = px_ideal;
     sqrt_info_ = std::sqrt(info);
     min_depth_mm_ = min_depth_mm;
+    held_ = held;
+    std::vector<std::int32_t>& sizes = *mutable_parameter_block_sizes();
+    sizes.clear();
+    if (!held) sizes.push_back(6);
+    sizes.push_back(3);
   }
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    if (held_)
+      return reprojection_cost(K_, px_, sqrt_info_, min_depth_mm_, pose_->held(), parameters[0], residuals, nullptr,
+                               jacobians ? jacobians[0] : nullptr);
     return reprojection_cost(K_, px_, sqrt_info_, min_depth_mm_, pose_->at(parameters[0]), parameters[1], residuals,
                              jacobians ? jacobians[0] : nullptr, jacobians ? jacobians[1] : nullptr);
   }
@@ -61,6 +84,7 @@ class ReprojectionCost final : public ceres::SizedCostFunction<2, 6, 3> {
   Pinhole K_;
   Vec2 px_ = Vec2::Zero();
   double sqrt_info_ = 1, min_depth_mm_ = 1;
+  bool held_ = false;
 };
 
 class ShapeCost final : public ceres::SizedCostFunction<3, 3> {
@@ -173,6 +197,7 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   max_points_ = max_points;
   max_observations_ = max_observations;
   point_observed_.assign(static_cast<std::size_t>(max_points), 0);
+  held_.assign(static_cast<std::size_t>(kMaxKeyframes), 0);
   newest_frames_.assign(static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_observations_per_point)), -1);
   newest_fixed_frames_.assign(
       static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_fixed_observations_per_point)), -1);
@@ -223,19 +248,18 @@ int BundleAdjuster::build(BaJob* job) {
   for (int i = 0; i < job->keyframe_count; ++i) {
     const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
     impl_->pose_caches[static_cast<std::size_t>(i)].reset(job->pose(i));
-    double* delta = pose_delta_block(i);
-    std::fill(delta, delta + 6, 0.0);
-    problem.AddParameterBlock(delta, 6);
-    if (k.fixed) {
-      problem.SetParameterBlockConstant(delta);
-      ++fixed;
-    }
+    std::fill(pose_delta_block(i), pose_delta_block(i) + 6, 0.0);
+    held_[static_cast<std::size_t>(i)] = k.fixed ? 1 : 0;
+    fixed += k.fixed ? 1 : 0;
     if (k.frame < job->keyframes[static_cast<std::size_t>(oldest)].frame) oldest = i;
   }
   if (fixed == 0) {  // gauge: hold the oldest keyframe
-    problem.SetParameterBlockConstant(pose_delta_block(oldest));
+    held_[static_cast<std::size_t>(oldest)] = 1;
     fixed = 1;
   }
+  // Held poses stay out of the problem (their residuals take the point only).
+  for (int i = 0; i < job->keyframe_count; ++i)
+    if (!held_[static_cast<std::size_t>(i)]) problem.AddParameterBlock(pose_delta_block(i), 6);
   job->summary.fixed_keyframes = fixed;
   if (options_.max_observations_per_point > 0)
     newest_frames_per_point(*job, options_.max_observations_per_point, false, &newest_frames_);
@@ -247,10 +271,14 @@ int BundleAdjuster::build(BaJob* job) {
     const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
     if (!point_observed_[static_cast<std::size_t>(o.point)] || !usable_observation(*job, o)) continue;
     ReprojectionCost& c = impl_->reprojection_costs[static_cast<std::size_t>(used++)];
+    const bool held = held_[static_cast<std::size_t>(o.keyframe)] != 0;
     c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm,
-          &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)]);
-    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), pose_delta_block(o.keyframe),
-                             job->points[static_cast<std::size_t>(o.point)].p_model);
+          &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)], held);
+    double* point = job->points[static_cast<std::size_t>(o.point)].p_model;
+    if (held)
+      problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), point);
+    else
+      problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), pose_delta_block(o.keyframe), point);
     if (job->keyframes[static_cast<std::size_t>(o.keyframe)].fixed) ++job->summary.fixed_observations;
   }
   if (options_.w_shape > 0) add_shape_residuals(job);
@@ -358,11 +386,13 @@ void BundleAdjuster::forget_planes() {
 // graph of the whole problem on every solve).
 static std::shared_ptr<ceres::ParameterBlockOrdering> schur_ordering(BaJob* job,
                                                                      const std::vector<std::uint8_t>& point_observed,
+                                                                     const std::vector<std::uint8_t>& held,
                                                                      double* deltas) {
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
   for (int i = 0; i < job->point_count; ++i)
     if (point_observed[static_cast<std::size_t>(i)]) ordering->AddElementToGroup(job->points[static_cast<std::size_t>(i)].p_model, 0);
-  for (int i = 0; i < job->keyframe_count; ++i) ordering->AddElementToGroup(deltas + 6 * i, 1);
+  for (int i = 0; i < job->keyframe_count; ++i)
+    if (!held[static_cast<std::size_t>(i)]) ordering->AddElementToGroup(deltas + 6 * i, 1);
   return ordering;
 }
 
@@ -378,7 +408,7 @@ bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
   job->summary.observations = used;
   if (used == 0) return false;
   ceres::Solver::Options so = impl_->solver_options;
-  so.linear_solver_ordering = schur_ordering(job, point_observed_, impl_->deltas.get());
+  so.linear_solver_ordering = schur_ordering(job, point_observed_, held_, impl_->deltas.get());
   if (max_iterations > 0) so.max_num_iterations = max_iterations;
   if (max_time_s > 0) so.max_solver_time_in_seconds = max_time_s;
   ceres::Solver::Summary s;

@@ -7,7 +7,8 @@
 // information). Keyframe poses are 6-dim left deltas around the handed-over
 // pose (core/ba_residuals.h); keyframes flagged fixed are held constant
 // (when a job has none, the oldest keyframe is fixed to remove the gauge
-// freedom left when w_shape = 0). Single-threaded, dense Schur complement (a
+// freedom left when w_shape = 0): a held pose is no parameter block, its
+// residuals take the point alone. Single-threaded, dense Schur complement (a
 // window has few poses and many points), bounded iterations and solver
 // time, and a stop once the gradient has fallen to a fraction of its start.
 //
@@ -109,6 +110,7 @@ class BundleAdjuster {
   ClosestPointIndex surface_;
   std::unique_ptr<Impl> impl_;
   std::vector<std::uint8_t> point_observed_;  // per job point: in the problem (a count while building)
+  std::vector<std::uint8_t> held_;            // per job keyframe: pose held constant (fixed or gauge), not a block
   std::vector<std::int32_t> newest_frames_;   // per job point: max_observations_per_point newest frames, descending
   std::vector<std::int32_t> newest_fixed_frames_;  // the same over fixed keyframes, max_fixed_observations_per_point
   std::vector<ShapePlane> planes_;            // per job point: tangent plane at the start value

@@ -172,3 +172,42 @@ TEST_CASE("closest point: bad input is refused, queries allocate nothing") {
   MESSAGE("mean query " << us / static_cast<double>(q.size()) << " us (half near the surface, half in the box "
                         << "+20 mm); mean distance " << sum / static_cast<double>(q.size()) << " mm");
 }
+
+// The float box tests of the 4-wide search: points on the surface (ties
+// between the triangles sharing a vertex), points far out (large float
+// rounding of the coordinates) and a one-leaf mesh all give the exhaustive
+// minimum; coordinates beyond 1e15 mm are refused like non-finite ones.
+TEST_CASE("closest point: on-surface, far-out and one-leaf queries equal brute force; huge coordinates refused") {
+  const Mesh mesh = load_liver_for_tracking();
+  ClosestPointIndex index;
+  REQUIRE(index.configure(mesh).ok());
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  double max_err = 0;
+  for (int i = 0; i < 200; ++i) {
+    const int v = static_cast<int>(u(rng) * (mesh.vertex_count() - 1));
+    const Vec3 dir = Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized();
+    const Vec3 on = mesh.vertex(v), near = on + 1e-7 * dir, far = on + 5e3 * dir;
+    for (const Vec3& p : {on, near, far}) {
+      SurfacePoint s;
+      REQUIRE(index.closest(p, &s));
+      max_err = std::max(max_err, std::abs(s.distance_mm - brute_force_distance(mesh, p)));
+    }
+  }
+  MESSAGE("max |search - brute force| " << max_err << " mm over 600 queries (on vertices, 0.1 nm off, 5 m off)");
+  CHECK(max_err < 1e-9);
+
+  Mesh one;
+  one.add_vertex(0, 0, 0);
+  one.add_vertex(10, 0, 0);
+  one.add_vertex(0, 10, 0);
+  one.add_triangle(0, 1, 2);
+  REQUIRE(index.configure(one).ok());
+  SurfacePoint s;
+  REQUIRE(index.closest(Vec3(2, 3, 4), &s));
+  CHECK(s.distance_mm == doctest::Approx(4.0));
+  CHECK(s.triangle == 0);
+  CHECK(index.closest(Vec3(1e14, 0, 0), &s));
+  CHECK(s.distance_mm == doctest::Approx(1e14 - 10.0));
+  CHECK_FALSE(index.closest(Vec3(2e15, 0, 0), &s));
+}
