@@ -38,6 +38,18 @@ int track(const std::filesystem::path& seq, const std::filesystem::path& out,
   return code;
 }
 
+// Simulates a sequence into dir/seq, replays it into dir/out and scores it.
+EvalReport simulate_track_evaluate(const std::filesystem::path& dir, int frames, const std::string& size, int seed,
+                                   const std::string& scenario) {
+  simulate(dir / "seq", frames, size, seed, scenario);
+  std::string err;
+  REQUIRE_MESSAGE(track(dir / "seq", dir / "out", &err) == 0, err);
+  auto report = evaluate_run(dir / "seq", dir / "out");
+  REQUIRE_MESSAGE(report.ok(), (report.ok() ? std::string() : report.message()));
+  MESSAGE(format_eval_table(report.value()));
+  return report.value();
+}
+
 double summary_number(const std::filesystem::path& out, const std::string& key) {
   auto v = json_number(test::read_file_bytes(out / "summary.json"), key);
   REQUIRE_MESSAGE(v.ok(), key);
@@ -58,14 +70,9 @@ TEST_CASE(
     "app_e2e: simulate 150 frames, track, evaluate: init ok, no frame lost, median TRE < 2 px" *
     doctest::timeout(test::budget_s(300))) {
   const auto dir = test::scratch_dir("app_e2e_orbit");
-  simulate(dir / "seq", 150, "480x270", 2);
-  std::string err;
-  REQUIRE_MESSAGE(track(dir / "seq", dir / "out", &err) == 0, err);
-  auto report = evaluate_run(dir / "seq", dir / "out");
-  REQUIRE_MESSAGE(report.ok(), (report.ok() ? std::string() : report.message()));
-  const EvalResult& e = report->result;
-  MESSAGE(format_eval_table(report.value()));
-  CHECK(report->frames_in_csv == 150);
+  const EvalReport report = simulate_track_evaluate(dir, 150, "480x270", 2, "orbit");
+  const EvalResult& e = report.result;
+  CHECK(report.frames_in_csv == 150);
   CHECK(e.frames == 150);
   CHECK(e.init_ok);
   CHECK(e.wrong_pct == 0.0);
@@ -83,14 +90,8 @@ TEST_CASE(
 // 3 % is not met here).
 TEST_CASE("app_e2e: fast bursts (seed 4, 640x360): no biased map after a burst, no wrong pose" *
           doctest::timeout(test::budget_s(300))) {
-  const auto dir = test::scratch_dir("app_e2e_fast");
-  simulate(dir / "seq", 300, "640x360", 4, "fast");
-  std::string err;
-  REQUIRE_MESSAGE(track(dir / "seq", dir / "out", &err) == 0, err);
-  auto report = evaluate_run(dir / "seq", dir / "out");
-  REQUIRE_MESSAGE(report.ok(), (report.ok() ? std::string() : report.message()));
-  const EvalResult& e = report->result;
-  MESSAGE(format_eval_table(report.value()));
+  const EvalReport report = simulate_track_evaluate(test::scratch_dir("app_e2e_fast"), 300, "640x360", 4, "fast");
+  const EvalResult& e = report.result;
   CHECK(e.init_ok);
   CHECK(e.wrong_pct == 0.0);
   CHECK(e.lost_pct <= 20.0);
