@@ -38,7 +38,7 @@ int hamming256_portable(const std::uint8_t* a, const std::uint8_t* b) {
 
 bool OrbMatcher::accept(const BestTwo& b) {
   if (b.best_k < 0 || b.best > config_.max_distance) return false;
-  if (b.second <= 256 && static_cast<float>(b.best) >= config_.ratio * static_cast<float>(b.second)) {
+  if (b.second < kNoCandidate && static_cast<float>(b.best) >= config_.ratio * static_cast<float>(b.second)) {
     ++stats_.ratio_rejected;
     return false;
   }
@@ -142,7 +142,7 @@ int OrbMatcher::search_by_projection(const ProjectedPoint* points, int n, const 
       b.add(hamming256(p.descriptor.data(), frame.descriptors[static_cast<std::size_t>(k)].data()), k);
     }
     stats_.candidates += nc;
-    best_dist_[static_cast<std::size_t>(i)] = static_cast<std::uint16_t>(std::min(b.best, 257));
+    best_dist_[static_cast<std::size_t>(i)] = static_cast<std::uint16_t>(b.best);  // kNoCandidate if none
     if (accept(b)) claim(i, b.best_k, b.best, match, distance);
   }
   return finish(frame, n, match);

@@ -79,7 +79,7 @@ class OrbMatcher {
  private:
   // Best and second-best Hamming distance over one point's candidates.
   struct BestTwo {
-    int best = 257, second = 257, best_k = -1;
+    int best = kNoCandidate, second = kNoCandidate, best_k = -1;
     void add(int d, int k) {
       if (d < best) { second = best; best = d; best_k = k; }
       else if (d < second) { second = d; }

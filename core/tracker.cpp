@@ -139,7 +139,6 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   dist_of_point_.assign(np, 0);
   searched_x_.assign(np, 0.f);
   searched_y_.assign(np, 0.f);
-  searched_r_.assign(np, 0.f);
   search_active_.assign(np, 1);
   ba_point_index_.assign(np, -1);
   ba_keyframe_index_.assign(static_cast<std::size_t>(config.max_keyframes), -1);

@@ -120,9 +120,10 @@ class TrackerImpl {
   std::vector<std::int32_t> local_ids_;   // local map: point ids
   std::vector<ProjectedPoint> projected_; // local map: projections at the current pose
   std::vector<std::int32_t> match_of_point_, dist_of_point_;
-  // Where the last search of this selection looked (positions, radii) and,
-  // for the next one, which points still need it (match_local_map).
-  std::vector<float> searched_x_, searched_y_, searched_r_;
+  // Where the last search of this selection looked (its radii stay in
+  // projected_) and, for the next one, which points still need it
+  // (match_local_map).
+  std::vector<float> searched_x_, searched_y_;
   std::vector<std::uint8_t> search_active_;
   bool searched_valid_ = false;  // the arrays describe the last search of the current selection
   std::vector<std::int32_t> match_of_query_;

@@ -125,16 +125,16 @@ int TrackerImpl::match_local_map(float radius_px) {
   for (int i = 0; i < local_count_; ++i) {
     const auto is = static_cast<std::size_t>(i);
     ProjectedPoint& q = projected_[is];
+    const float searched_radius = q.radius_px;  // the last search's (only this function sets it)
     q.radius_px = radius_px * octave_scale_[static_cast<std::size_t>(q.predicted_octave)];
     if (prune) {
       const float dx = q.x - searched_x_[is], dy = q.y - searched_y_[is];
-      const float slack = searched_r_[is] - q.radius_px - 1e-3f;  // how far the circle may move and stay inside
+      const float slack = searched_radius - q.radius_px - 1e-3f;  // how far the circle may move and stay inside
       const bool inside = slack >= 0.f && dx * dx + dy * dy <= slack * slack;
       search_active_[is] = !(inside && best[is] > max_distance);
     }
     searched_x_[is] = q.x;
     searched_y_[is] = q.y;
-    searched_r_[is] = q.radius_px;
   }
   searched_valid_ = true;
   matcher_.search_by_projection(projected_.data(), local_count_, *features_, grid_, match_of_point_.data(),
