@@ -48,6 +48,19 @@ BundleAdjusterOptions options(double w_shape) {
   return o;
 }
 
+// ba configured for the CT liver, the test pinhole and job's capacities.
+bool configure_for(BundleAdjuster& ba, const BundleAdjusterOptions& o, const Mesh& mesh, const Pinhole& K,
+                   const BaJob& job) {
+  return ba.configure(o, mesh, K, job.point_capacity(), job.observation_capacity()).ok();
+}
+
+// A default simulated window of the given number of points.
+BaWindow window_of(const Mesh& mesh, const Pinhole& K, int points) {
+  BaWindowSpec spec;
+  spec.points = points;
+  return make_ba_window(mesh, K, spec);
+}
+
 // A per-point observation cap (a BundleAdjusterOptions member) outside
 // [0, kMaxObservationsPerPointCap] is refused by configure().
 void check_cap_bounds(BundleAdjusterOptions o, int BundleAdjusterOptions::*cap, const Mesh& mesh, const Pinhole& K,
@@ -55,7 +68,7 @@ void check_cap_bounds(BundleAdjusterOptions o, int BundleAdjusterOptions::*cap, 
   BundleAdjuster ba;
   for (const int bad : {-1, kMaxObservationsPerPointCap + 1}) {
     o.*cap = bad;
-    CHECK_FALSE(ba.configure(o, mesh, K, job.point_capacity(), job.observation_capacity()).ok());
+    CHECK_FALSE(configure_for(ba, o, mesh, K, job));
   }
 }
 
@@ -64,14 +77,12 @@ void check_cap_bounds(BundleAdjusterOptions o, int BundleAdjusterOptions::*cap, 
 TEST_CASE("ba window: perturbed poses and points come back; the shape residual keeps points on the mesh") {
   const Mesh mesh = load_liver_for_tracking();
   const Pinhole K = track_test_pinhole();
-  BaWindowSpec spec;
-  spec.points = 600;
   Errors with_shape, without_shape, start;
   for (const double w_shape : {100.0, 0.0}) {
-    BaWindow w = make_ba_window(mesh, K, spec);
+    BaWindow w = window_of(mesh, K, 600);
     REQUIRE(w.job.point_count > 400);
     BundleAdjuster ba;
-    REQUIRE(ba.configure(options(w_shape), mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+    REQUIRE(configure_for(ba, options(w_shape), mesh, K, w.job));
     start = errors(w, ba);
     REQUIRE(ba.solve(&w.job));
     const Errors end = errors(w, ba);
@@ -93,13 +104,11 @@ TEST_CASE("ba window: perturbed poses and points come back; the shape residual k
 TEST_CASE("ba window: the exact re-queried shape residual converges as well") {
   const Mesh mesh = load_liver_for_tracking();
   const Pinhole K = track_test_pinhole();
-  BaWindowSpec spec;
-  spec.points = 300;
-  BaWindow w = make_ba_window(mesh, K, spec);
+  BaWindow w = window_of(mesh, K, 300);
   BundleAdjusterOptions o = options(100.0);
   o.exact_shape = true;
   BundleAdjuster ba;
-  REQUIRE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+  REQUIRE(configure_for(ba, o, mesh, K, w.job));
   const Errors start = errors(w, ba);
   REQUIRE(ba.solve(&w.job));
   const Errors end = errors(w, ba);
@@ -114,11 +123,9 @@ TEST_CASE("ba window: the exact re-queried shape residual converges as well") {
 TEST_CASE("ba window: iteration cap holds, allocations per solve are bounded and repeatable") {
   const Mesh mesh = load_liver_for_tracking();
   const Pinhole K = track_test_pinhole();
-  BaWindowSpec spec;
-  spec.points = 300;
-  BaWindow w = make_ba_window(mesh, K, spec);
+  BaWindow w = window_of(mesh, K, 300);
   BundleAdjuster ba;
-  REQUIRE(ba.configure(options(100.0), mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+  REQUIRE(configure_for(ba, options(100.0), mesh, K, w.job));
   const BaJob pristine = w.job;
   std::uint64_t counts[3] = {};
   for (std::uint64_t& n : counts) {
@@ -162,14 +169,12 @@ TEST_CASE("ba window: invalid jobs are refused without touching Ceres") {
 TEST_CASE("ba window: observations capped to the newest k per point still bring the window back") {
   const Mesh mesh = load_liver_for_tracking();
   const Pinhole K = track_test_pinhole();
-  BaWindowSpec spec;
-  spec.points = 400;
-  BaWindow w = make_ba_window(mesh, K, spec);
+  BaWindow w = window_of(mesh, K, 400);
   constexpr int kCap = 4;
   BundleAdjusterOptions o = options(100.0);
   o.max_observations_per_point = kCap;
   BundleAdjuster ba;
-  REQUIRE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+  REQUIRE(configure_for(ba, o, mesh, K, w.job));
   // The newest kCap keyframes (by frame) of each point: the kept count follows.
   int expected = 0;
   for (int p = 0; p < w.job.point_count; ++p) {
@@ -202,7 +207,7 @@ TEST_CASE("ba window: observations from fixed keyframes capped per point; the wi
     BundleAdjusterOptions o = options(w_shape);
     o.max_fixed_observations_per_point = kCap;
     BundleAdjuster ba;
-    REQUIRE(ba.configure(o, mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+    REQUIRE(configure_for(ba, o, mesh, K, w.job));
     // Per point: every free observation, at most kCap fixed ones.
     int expected = 0, expected_fixed = 0;
     for (int p = 0; p < w.job.point_count; ++p) {
@@ -238,9 +243,7 @@ TEST_CASE("ba window: observations from fixed keyframes capped per point; the wi
 TEST_CASE("ba window: points seen once are left out unchanged (no pose information), or kept on request") {
   const Mesh mesh = load_liver_for_tracking();
   const Pinhole K = track_test_pinhole();
-  BaWindowSpec spec;
-  spec.points = 300;
-  const BaWindow w = make_ba_window(mesh, K, spec);
+  const BaWindow w = window_of(mesh, K, 300);
   // The window plus 50 single-view points: copies of window points with only
   // their first observation.
   constexpr int kSingle = 50;
@@ -268,7 +271,7 @@ TEST_CASE("ba window: points seen once are left out unchanged (no pose informati
     BundleAdjusterOptions o = options(100.0);
     o.min_observations_per_point = min_obs;
     BundleAdjuster ba;
-    REQUIRE(ba.configure(o, mesh, K, job.point_capacity(), job.observation_capacity()).ok());
+    REQUIRE(configure_for(ba, o, mesh, K, job));
     BaJob solved = job;
     REQUIRE(solved.add_point(-1, -1, Vec3::Zero()) < 0);  // full: the copy kept the capacities
     REQUIRE(ba.solve(&solved));
@@ -294,22 +297,20 @@ TEST_CASE("ba window: points seen once are left out unchanged (no pose informati
       rot += pose_delta(w.T_true[static_cast<std::size_t>(k)], solved.pose(k)).angle_deg;
       ++free;
     }
-    CHECK(rot / free < 0.2 * spec.pose_rot_deg);
+    CHECK(rot / free < 0.2 * BaWindowSpec{}.pose_rot_deg);
   }
   BundleAdjusterOptions bad = options(100.0);
   bad.min_observations_per_point = 0;
   BundleAdjuster ba;
-  CHECK_FALSE(ba.configure(bad, mesh, K, job.point_capacity(), job.observation_capacity()).ok());
+  CHECK_FALSE(configure_for(ba, bad, mesh, K, job));
 }
 
 TEST_CASE("ba window: tangent planes are reused across solves while points stay put, re-queried when moved") {
   const Mesh mesh = load_liver_for_tracking();
   const Pinhole K = track_test_pinhole();
-  BaWindowSpec spec;
-  spec.points = 200;
-  BaWindow w = make_ba_window(mesh, K, spec);
+  BaWindow w = window_of(mesh, K, 200);
   BundleAdjuster ba;
-  REQUIRE(ba.configure(options(100.0), mesh, K, w.job.point_capacity(), w.job.observation_capacity()).ok());
+  REQUIRE(configure_for(ba, options(100.0), mesh, K, w.job));
   const BaJob pristine = w.job;
   REQUIRE(ba.solve(&w.job));
   const int points = w.job.summary.plane_queries;

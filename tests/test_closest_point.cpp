@@ -12,6 +12,7 @@
 
 #include "core/closest_point.h"
 #include "support/alloc_guard.h"
+#include "support/ba_window.h"
 #include "support/track_scene.h"
 
 using namespace st;
@@ -186,7 +187,7 @@ TEST_CASE("closest point: on-surface, far-out and one-leaf queries equal brute f
   double max_err = 0;
   for (int i = 0; i < 200; ++i) {
     const int v = static_cast<int>(u(rng) * (mesh.vertex_count() - 1));
-    const Vec3 dir = Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized();
+    const Vec3 dir = random_unit(rng);
     const Vec3 on = mesh.vertex(v), near = on + 1e-7 * dir, far = on + 5e3 * dir;
     for (const Vec3& p : {on, near, far}) {
       SurfacePoint s;
