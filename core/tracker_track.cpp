@@ -195,21 +195,29 @@ double TrackerImpl::image_shift_px(const SE3& a, const SE3& b) const {
 }
 
 // The constant-velocity prediction T_predicted (from T_reference, the last
-// pose), turned about the camera centre so that the view centre moves as
-// the measured whole-image shift says. Under a sudden turn (with motion
-// blur) the constant-velocity guess is tens of pixels off; the shift of
-// small blurred images is not. Corrections of a few pixels are left alone:
+// pose), turned about the camera centre so that the view moves as the
+// measured whole-image motion (shift of the view centre and roll) says.
+// Under a sudden turn (with motion blur) the constant-velocity guess is
+// tens of pixels off; the motion of small blurred images is not.
+// Corrections that move no image point by 4 px or more are left alone:
 // there the constant-velocity prediction is as good.
 SE3 TrackerImpl::motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted) {
   const Vec2 centre(K_.cx, K_.cy);
   const Vec3 p_model = T_reference.inverse() * K_.unproject(centre, last_depth_mm_);
   const Vec3 p_camera = T_predicted * p_model;
-  const Vec2 guess = p_camera.z() > 1.0 ? Vec2(K_.project(p_camera) - centre) : Vec2(Vec2::Zero());
-  Vec2 shift = Vec2::Zero();
-  if (!config_.use_image_motion || !motion_.update(luma, valid_view_, guess, &shift)) return T_predicted;
-  const Vec2 residual = shift - guess;
-  if (residual.norm() < 4.0) return T_predicted;
-  const Vec3 omega(-residual.y() / K_.fy, residual.x() / K_.fx, 0.0);
+  ViewMotion guess;
+  guess.shift_px = p_camera.z() > 1.0 ? Vec2(K_.project(p_camera) - centre) : Vec2(Vec2::Zero());
+  // The predicted roll: the turn of the image plane's axes (camera x, y)
+  // from the reference to the prediction, about the optical axis.
+  const Mat3 R = T_predicted.rotation() * T_reference.rotation().transpose();
+  guess.roll_rad = std::atan2(R(1, 0) - R(0, 1), R(0, 0) + R(1, 1));
+  ViewMotion measured;
+  if (!config_.use_image_motion || !motion_.update(luma, valid_view_, centre, guess, &measured)) return T_predicted;
+  const Vec2 residual = measured.shift_px - guess.shift_px;
+  const double residual_roll = measured.roll_rad - guess.roll_rad;
+  const double reach = std::hypot(std::max(K_.cx, K_.width - K_.cx), std::max(K_.cy, K_.height - K_.cy));
+  if (residual.norm() + std::abs(residual_roll) * reach < 4.0) return T_predicted;
+  const Vec3 omega(-residual.y() / K_.fy, residual.x() / K_.fx, residual_roll);
   return SE3(so3_exp(omega), Vec3::Zero()) * T_predicted;
 }
 
