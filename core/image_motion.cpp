@@ -329,7 +329,7 @@ bool ImageMotion::update(GrayView luma, GrayView valid, const Vec2& centre_px, c
     // shift and roll. A roll within half a step of the guess is reported
     // as the guess: whole-image alignment cannot tell a fraction of a
     // degree of roll from parallax (near organ, far abdominal wall).
-    double roll = std::clamp(guess.roll_rad, -kMaxRoll, kMaxRoll);
+    double roll = guess.roll_rad;
     ok = shift_ok;
     if (best < 1e30) {
       const double guess_roll = roll;
