@@ -60,7 +60,7 @@ TEST_CASE("sim: every scenario keeps a sane, smooth scope path looking at the or
     REQUIRE(kind.ok());
     const Trajectory traj(kind.value(), test_scene(), 300, 3);
     double min_d = 1e9, max_d = 0, max_step_deg = 0;
-    int out_frames = 0, blurred = 0;
+    int out_frames = 0, blurred = 0, min_sub = 99, max_sub = 0;
     for (int i = 0; i < 300; ++i) {
       const WorldState s = traj.at(i);
       if (organ_vertices_in_view(s, kK) == 0) {
@@ -70,13 +70,27 @@ TEST_CASE("sim: every scenario keeps a sane, smooth scope path looking at the or
         max_d = std::max(max_d, nearest_organ_mm(s));
       }
       if (i > 0) max_step_deg = std::max(max_step_deg, pose_delta(traj.at(i - 1).T_model_camera(), s.T_model_camera()).angle_deg);
-      if (traj.blur_subframes(i) > 1) ++blurred;
+      // Blurred frames: an odd count (a sub-frame at the frame time), more
+      // for a longer smear, within the render budget.
+      const int n = traj.blur_subframes(i);
+      CHECK((n == 1 || (n >= 5 && n <= 9 && n % 2 == 1)));
+      if (n > 1) {
+        ++blurred;
+        min_sub = std::min(min_sub, n);
+        max_sub = std::max(max_sub, n);
+      }
     }
     MESSAGE(std::string(name) << ": organ distance " << min_d << ".." << max_d << " mm, out of view " << out_frames
                  << " frames, largest step " << max_step_deg << " deg, blurred " << blurred);
     CHECK(organ_vertices_in_view(traj.at(0), kK) > 500);
     CHECK(min_d > 30.0);
     CHECK(max_d < 160.0);
+    // The swings of fast and outofview (2-7 deg per frame) reach the most
+    // sub-frames; their onsets fewer.
+    if (blurred > 0) {
+      CHECK(max_sub == 9);
+      CHECK(min_sub < 9);
+    }
     if (std::string(name) == "outofview") {
       CHECK(out_frames >= 30);  // >= 1 s at 30 fps
       CHECK(out_frames <= 60);  // <= 2 s

@@ -34,7 +34,8 @@ class Trajectory {
 
   // The state at a fractional frame index in [-1, frames] (sub-frames).
   WorldState at(double frame) const;
-  // Sub-frames to average for frame i: 1, or 5 where the image moves fast.
+  // Sub-frames to average for frame i: 1, or 5..9 (odd) where the image
+  // moves fast, more for a longer smear.
   int blur_subframes(int frame) const;
   int frames() const { return frames_; }
   ScenarioKind kind() const { return kind_; }
