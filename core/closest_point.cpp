@@ -33,6 +33,18 @@ SurfacePoint on_edge(const Vec3& p, const Vec3& a, const Vec3& b, double t) {
   return s;
 }
 
+// A triangle with edges ab, ac and normal n = ab x ac has no usable normal
+// (collinear or coincident corners, relative to its edge lengths): its
+// closest point is on one of its edges.
+bool degenerate(const Vec3& ab, const Vec3& ac, const Vec3& n) {
+  return !(n.squaredNorm() > 1e-24 * std::max(1.0, ab.squaredNorm() * ac.squaredNorm()));
+}
+
+bool degenerate_triangle(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a;
+  return degenerate(ab, ac, ab.cross(ac));
+}
+
 // Closest point on segment ab (degenerate triangles only).
 SurfacePoint closest_on_segment(const Vec3& p, const Vec3& a, const Vec3& b) {
   const Vec3 ab = b - a;
@@ -137,7 +149,7 @@ SurfacePoint closest_by_region(const Vec3& p, const Vec3& a, const Vec3& b, cons
 double triangle_distance2(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 ab = b - a, ac = c - a;
   const Vec3 n = ab.cross(ac);
-  if (!(n.squaredNorm() > 1e-24 * std::max(1.0, ab.squaredNorm() * ac.squaredNorm()))) {
+  if (degenerate(ab, ac, n)) {
     const double d = std::min({closest_on_segment(p, a, b).distance_mm, closest_on_segment(p, a, c).distance_mm,
                                closest_on_segment(p, b, c).distance_mm});
     return d * d;
@@ -148,7 +160,7 @@ double triangle_distance2(const Vec3& p, const Vec3& a, const Vec3& b, const Vec
 SurfacePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 ab = b - a, ac = c - a;
   const Vec3 n = ab.cross(ac);
-  if (!(n.squaredNorm() > 1e-24 * std::max(1.0, ab.squaredNorm() * ac.squaredNorm()))) {
+  if (degenerate(ab, ac, n)) {
     SurfacePoint best = closest_on_segment(p, a, b);
     for (const SurfacePoint& s : {closest_on_segment(p, a, c), closest_on_segment(p, b, c)})
       if (s.distance_mm < best.distance_mm) best = s;
@@ -160,11 +172,6 @@ SurfacePoint closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3&
 }
 
 namespace {
-
-bool degenerate_triangle(const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 ab = b - a, ac = c - a;
-  return !(ab.cross(ac).squaredNorm() > 1e-24 * std::max(1.0, ab.squaredNorm() * ac.squaredNorm()));
-}
 
 // Squared distances of p to the 4 lane boxes, in float (see closest()).
 // Empty lanes have +inf boxes: +inf.

@@ -7,7 +7,7 @@
 // dense point cloud.
 //
 // Search cost: the 4 child boxes of a node are tested at once in float
-// (the compiler vectorises the fixed 4-lane loop; no intrinsics needed);
+// (OpenCV's 4-lane universal intrinsics, a plain loop without SIMD);
 // a box is skipped only when its float distance exceeds the best triangle
 // distance by more than a slack that bounds the float rounding, so the
 // float test never drops a box that could hold a closer triangle (the
