@@ -332,7 +332,6 @@ bool ImageMotion::update(GrayView luma, GrayView valid, const Vec2& centre_px, c
     double roll = guess.roll_rad;
     ok = shift_ok;
     if (best < 1e30) {
-      const double guess_roll = roll;
       double e0 = ssd_rolled(t, roll, centre, 2);
       for (const double dir : {1.0, -1.0}) {
         int k = 0;
@@ -344,7 +343,7 @@ bool ImageMotion::update(GrayView luma, GrayView valid, const Vec2& centre_px, c
         }
         if (k > 0) break;  // went this way: the other way is uphill
       }
-      if (roll != guess_roll) ok = refine_roll(centre, &t, &roll);
+      if (roll != guess.roll_rad) ok = refine_roll(centre, &t, &roll);
     }
     if (ok) {
       motion->shift_px = t * static_cast<double>(kShrink);
