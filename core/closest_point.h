@@ -7,7 +7,7 @@
 // dense point cloud.
 //
 // Search cost: the 4 child boxes of a node are tested at once in float
-// (OpenCV's 4-lane universal intrinsics, a plain loop without SIMD);
+// (OpenCV's 4-lane universal intrinsics; a plain loop where there is none);
 // a box is skipped only when its float distance exceeds the best triangle
 // distance by more than a slack that bounds the float rounding, so the
 // float test never drops a box that could hold a closer triangle (the
