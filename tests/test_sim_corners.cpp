@@ -5,6 +5,7 @@
 // seed). Prints the figures; fails when the sim drifts out of the band.
 #include <doctest/doctest.h>
 
+#include <cmath>
 #include <cstdio>
 
 #include <opencv2/imgproc.hpp>
@@ -43,10 +44,12 @@ struct SimFigures {
   double organ_luma = 0, organ_per_10k[2] = {0, 0}, background_per_10k[2] = {0, 0}, organ_fixed[2] = {0, 0};
 };
 
-SimFigures measure_sim(ScenarioKind kind, const std::vector<int>& frames, int total_frames) {
+SimFigures measure_sim(ScenarioKind kind, const std::vector<int>& frames, int total_frames,
+                       double organ_detail = 1.0) {
   SimOptions o;
   o.scenario = kind;
   o.frames = total_frames;
+  o.organ_detail = organ_detail;
   auto setup = make_setup(o);
   REQUIRE(setup);
   RenderSettings other_noise = setup.value().render;
@@ -105,4 +108,32 @@ TEST_CASE("sim: organ corner density matches the real liver and the corners are 
   // At ORB's threshold (20) most organ corners belong to the surface, not the
   // sensor noise (measured 61%; before the texture calibration: 0%).
   CHECK(sim.organ_fixed[0] > 0.55);
+}
+
+TEST_CASE("sim: --organ-detail makes the organ smoother, and the texture's corners go with it" *
+          doctest::timeout(test::budget_s(120))) {
+  const SimFigures full = measure_sim(ScenarioKind::Orbit, {150}, 300, 1.0);
+  const SimFigures half = measure_sim(ScenarioKind::Orbit, {150}, 300, 0.5);
+  const SimFigures none = measure_sim(ScenarioKind::Orbit, {150}, 300, 0.0);
+  std::printf("FAST>20 per 10k organ px: detail 1 %.1f, 0.5 %.1f, 0 %.1f; mean luma %.0f %.0f %.0f\n",
+              full.organ_per_10k[0], half.organ_per_10k[0], none.organ_per_10k[0], full.organ_luma,
+              half.organ_luma, none.organ_luma);
+  CHECK(half.organ_per_10k[0] < 0.5 * full.organ_per_10k[0]);
+  CHECK(none.organ_per_10k[0] < half.organ_per_10k[0]);
+  // Smoother, not darker or brighter: the speckle modulates around the albedo.
+  CHECK(std::abs(half.organ_luma - full.organ_luma) < 8.0);
+  // The background's texture is untouched.
+  CHECK(half.background_per_10k[0] == doctest::Approx(full.background_per_10k[0]).epsilon(0.01));
+}
+
+TEST_CASE("sim: organ detail outside 0..2 or not a number is refused") {
+  SimOptions o;
+  o.frames = 10;
+  for (double bad : {-0.1, 2.5, std::nan("")}) {
+    o.organ_detail = bad;
+    auto setup = make_setup(o);
+    REQUIRE(setup);
+    SceneRenderer r;
+    CHECK_FALSE(r.configure(setup.value().scene, setup.value().render));
+  }
 }

@@ -1,7 +1,7 @@
 // scopetrack-sim: writes a synthetic laparoscopic sequence with exact
 // ground truth (docs/sequence-format.md).
 //   scopetrack-sim --scenario NAME --out DIR [--frames N] [--size WxH]
-//                  [--seed S] [--mesh FILE] [--field-stop on|off]
+//                  [--seed S] [--mesh FILE] [--field-stop on|off] [--organ-detail F]
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -15,7 +15,8 @@ void usage() {
   std::fprintf(stderr,
                "usage: scopetrack-sim --scenario orbit|fast|outofview|manipulation|invivo --out DIR\n"
                "                      [--frames N (300)] [--size WxH (1280x720; invivo 960x540)]\n"
-               "                      [--seed S (1)] [--mesh FILE.ply|stl] [--field-stop on|off]\n");
+               "                      [--seed S (1)] [--mesh FILE.ply|stl] [--field-stop on|off]\n"
+               "                      [--organ-detail F (1; lower = smoother tissue)]\n");
 }
 
 bool parse_int(std::string_view s, long long lo, long long hi, long long* out) {
@@ -24,6 +25,16 @@ bool parse_int(std::string_view s, long long lo, long long hi, long long* out) {
   const std::string str(s);
   const long long v = std::strtoll(str.c_str(), &end, 10);
   if (*end != '\0' || v < lo || v > hi) return false;
+  *out = v;
+  return true;
+}
+
+bool parse_double(std::string_view s, double lo, double hi, double* out) {
+  if (s.empty()) return false;
+  char* end = nullptr;
+  const std::string str(s);
+  const double v = std::strtod(str.c_str(), &end);
+  if (*end != '\0' || !(v >= lo && v <= hi)) return false;  // NaN fails too
   *out = v;
   return true;
 }
@@ -59,6 +70,9 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
       o->seed = static_cast<std::uint64_t>(n);
     } else if (a == "--mesh") {
       o->mesh_file = std::string(v);
+    } else if (a == "--organ-detail") {
+      if (!parse_double(v, 0.0, st::sim::kMaxOrganDetail, &o->organ_detail))
+        return "--organ-detail wants a number in 0..2 (1: the calibrated tissue texture)";
     } else if (a == "--field-stop") {
       if (v != "on" && v != "off") return "--field-stop wants on or off";
       o->field_stop = v == "on" ? 1 : 0;

@@ -72,12 +72,18 @@ void SceneRenderer::bake_detail(ShadeMesh* sm) const {
 
 Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settings) {
   if (Status s = CameraModel::validate(settings.K, settings.distortion); !s) return s;
+  if (!(settings.organ_detail >= 0.0 && settings.organ_detail <= kMaxOrganDetail))
+    return make_error("organ detail must be a number in 0..2 (1: the calibrated texture)");
   settings_ = settings;
   scene_ = &scene;
   organ_centre_model_ = bounding_box(scene.organ).centre();
   texture_ = Texture(settings.seed);
   for (int m = 0; m < static_cast<int>(MaterialId::Count); ++m) {
     materials_[m] = material(static_cast<MaterialId>(m));
+    if (static_cast<MaterialId>(m) == MaterialId::Liver) {
+      materials_[m].speckle_strength *= static_cast<float>(settings.organ_detail);
+      materials_[m].spots *= static_cast<float>(settings.organ_detail);
+    }
     // n.l below which the specular term ndl^(2^k) is < 1e-4 (under 1/255 of
     // the brightest highlight): shade_pixel skips the squaring chain there.
     specular_cutoff_[m] = std::pow(1e-4f, 1.0f / static_cast<float>(1 << materials_[m].shininess_log2));

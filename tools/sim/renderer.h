@@ -27,6 +27,9 @@ namespace st::sim {
 // Per-pixel labels of the rendered (output) image.
 inline constexpr std::uint8_t kLabelNone = 0, kLabelOrgan = 1, kLabelBackground = 2, kLabelInstrument = 3;
 
+// Largest RenderSettings::organ_detail accepted: twice the calibrated texture.
+inline constexpr double kMaxOrganDetail = 2.0;
+
 struct RenderSettings {
   Pinhole K;                 // output (distorted) image camera
   Distortion distortion;     // OpenCV radial-tangential
@@ -38,6 +41,10 @@ struct RenderSettings {
   double noise_shot = 0.0007; // signal-dependent variance per unit signal
   std::uint64_t seed = 1;
   std::uint64_t noise_seed = 0;  // sensor noise only; 0: use seed (texture stays that of seed)
+  // The organ's fine texture (speckle and lobule spots) relative to the
+  // calibrated one: 1 matches the real liver's corner density, lower is
+  // smoother tissue (0: no fine texture; vessels and mottling stay).
+  double organ_detail = 1.0;
 };
 
 class SceneRenderer {

@@ -28,6 +28,7 @@ struct SimOptions {
   std::uint64_t seed = 1;
   std::filesystem::path mesh_file;  // empty: the procedural liver
   int field_stop = -1;              // -1: scenario default (invivo only), 0 off, 1 on
+  double organ_detail = 1.0;        // RenderSettings::organ_detail (1: calibrated on the real liver)
   bool progress = false;            // progress bar on stderr
 };
 
