@@ -7,6 +7,7 @@
 #include <string>
 #include <string_view>
 
+#include "core/text_scan.h"
 #include "tools/sim/sim_run.h"
 
 namespace {
@@ -25,16 +26,6 @@ bool parse_int(std::string_view s, long long lo, long long hi, long long* out) {
   const std::string str(s);
   const long long v = std::strtoll(str.c_str(), &end, 10);
   if (*end != '\0' || v < lo || v > hi) return false;
-  *out = v;
-  return true;
-}
-
-bool parse_double(std::string_view s, double lo, double hi, double* out) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  const std::string str(s);
-  const double v = std::strtod(str.c_str(), &end);
-  if (*end != '\0' || !(v >= lo && v <= hi)) return false;  // NaN fails too
   *out = v;
   return true;
 }
@@ -71,8 +62,10 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
     } else if (a == "--mesh") {
       o->mesh_file = std::string(v);
     } else if (a == "--organ-detail") {
-      if (!parse_double(v, 0.0, st::sim::kMaxOrganDetail, &o->organ_detail))
+      double f = 0;
+      if (!st::parse_double(v, &f) || !(f >= 0.0 && f <= st::sim::kMaxOrganDetail))  // NaN fails too
         return "--organ-detail wants a number in 0..2 (1: the calibrated tissue texture)";
+      o->organ_detail = f;
     } else if (a == "--field-stop") {
       if (v != "on" && v != "off") return "--field-stop wants on or off";
       o->field_stop = v == "on" ? 1 : 0;
