@@ -52,6 +52,20 @@ cv::Mat window(const cv::Mat& full, int x0, int y0, int sx, int sy) {
   return full(cv::Rect(x0 - sx, y0 - sy, 1280, 720)).clone();
 }
 
+// The current window: the full frame turned by roll about the point pivot
+// of the previous window (its pixels), then shifted by (sx, sy); the
+// previous window sits at (x0, y0) of the full frame.
+cv::Mat rolled_window(const cv::Mat& full, int x0, int y0, double roll_deg, const Vec2& pivot, double sx, double sy) {
+  const double r = roll_deg * M_PI / 180.0, c = std::cos(r), s = std::sin(r);
+  // current(q) = full(A^-1 (q - b)) with q = pivot + R (x - pivot) + (sx, sy), x = window pixel.
+  const cv::Point2d p(pivot.x() + x0, pivot.y() + y0);  // pivot in the full frame
+  cv::Mat M = (cv::Mat_<double>(2, 3) << c, -s, pivot.x() + sx - (c * p.x - s * p.y),  //
+               s, c, pivot.y() + sy - (s * p.x + c * p.y));
+  cv::Mat out;
+  cv::warpAffine(full, out, M, cv::Size(1280, 720), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  return out;
+}
+
 }  // namespace
 
 TEST_CASE("image_motion: known shift of the real frame, sharp and motion-blurred") {
@@ -110,20 +124,6 @@ TEST_CASE("image_motion: a valid mask at half resolution (the tracker's) is samp
   REQUIRE(update(m, window(full, 300, 180, -25, 14), view_of(valid), Vec2(0, 0), &shift));
   CHECK(std::abs(shift.x() + 25) < 2.0);
   CHECK(std::abs(shift.y() - 14) < 2.0);
-}
-
-// The current window: the full frame turned by roll about the point pivot
-// of the previous window (its pixels), then shifted by (sx, sy); the
-// previous window sits at (x0, y0) of the full frame.
-static cv::Mat rolled_window(const cv::Mat& full, int x0, int y0, double roll_deg, const Vec2& pivot, double sx, double sy) {
-  const double r = roll_deg * M_PI / 180.0, c = std::cos(r), s = std::sin(r);
-  // current(q) = full(A^-1 (q - b)) with q = pivot + R (x - pivot) + (sx, sy), x = window pixel.
-  const cv::Point2d p(pivot.x() + x0, pivot.y() + y0);  // pivot in the full frame
-  cv::Mat M = (cv::Mat_<double>(2, 3) << c, -s, pivot.x() + sx - (c * p.x - s * p.y),  //
-               s, c, pivot.y() + sy - (s * p.x + c * p.y));
-  cv::Mat out;
-  cv::warpAffine(full, out, M, cv::Size(1280, 720), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  return out;
 }
 
 TEST_CASE("image_motion: a roll about the optical axis, sharp and motion-blurred") {
