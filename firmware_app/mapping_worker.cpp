@@ -2,6 +2,7 @@
 
 #include "platform/alloc_counter.h"
 #include "platform/clock.h"
+#include "platform/realtime.h"
 
 namespace st::app {
 
@@ -58,6 +59,10 @@ void MappingWorker::release_job(const BaJob* job) {
 }
 
 void MappingWorker::run() {
+  // Refused only when the process already runs at a lower priority than
+  // this (a nice launcher); the thread then keeps that one, as reported.
+  platform::set_thread_nice(platform::kBackgroundWorkerNice);
+  stats_.thread_nice = platform::thread_nice();
   for (;;) {
     std::int32_t slot = -1;
     queue_.pop_wait(&slot);
@@ -109,6 +114,7 @@ void MappingWorker::append_summary(std::vector<std::pair<std::string, double>>* 
   fields->emplace_back("ba_mean_window_fixed_observations", s.mean_window_fixed_observations);
   fields->emplace_back("ba_max_allocations_per_solve", static_cast<double>(s.max_allocations_per_solve));
   fields->emplace_back("ba_mean_surface_distance_mm", s.mean_surface_distance_mm);
+  fields->emplace_back("ba_thread_nice", s.thread_nice);
 }
 
 }  // namespace st::app

@@ -11,7 +11,9 @@
 // thread (start spawns the mapping thread, stop joins it); the BaChannel
 // calls on the tracking thread (allocate nothing, never block); solving
 // on the mapping thread (Ceres allocates there, bounded by the job size;
-// counted per solve in stats()).
+// counted per solve in stats()). The mapping thread lowers its own priority
+// (platform::kBackgroundWorkerNice) so that, on a shared core, it takes the
+// time the tracking thread leaves instead of delaying frames.
 #pragma once
 
 #include <atomic>
@@ -36,6 +38,7 @@ struct MappingStats {
   double mean_surface_distance_mm = -1;         // of the last usable job's points after the solve
   double mean_window_observations = 0;          // reprojection residuals per window solve
   double mean_window_fixed_observations = 0;    // of those: from fixed keyframes
+  int thread_nice = -1;                         // the mapping thread's nice value (-1: never ran)
 };
 
 class MappingWorker final : public BaChannel {

@@ -82,6 +82,7 @@ void StreamLink::finish(std::vector<std::pair<std::string, double>>* fields) {
   fields->emplace_back("texture_frames", static_cast<double>(texture_.frames_textured()));
   fields->emplace_back("texture_skipped_frames", static_cast<double>(texture_skips_));
   fields->emplace_back("texture_colour_updates", static_cast<double>(texture_.colours_sent()));
+  fields->emplace_back("texture_thread_nice", static_cast<double>(texture_.thread_nice()));
   fields->emplace_back("texture_thread_allocations",
                        static_cast<double>(texture_.worker_allocations()));
 }

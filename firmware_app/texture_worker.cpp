@@ -3,6 +3,7 @@
 #include <cstring>
 
 #include "platform/alloc_counter.h"
+#include "platform/realtime.h"
 
 namespace st::app {
 
@@ -66,6 +67,8 @@ void TextureWorker::stop() {
 }
 
 void TextureWorker::run() {
+  platform::set_thread_nice(platform::kBackgroundWorkerNice);  // its report allocates: before the count
+  thread_nice_.store(platform::thread_nice());
   const std::uint64_t allocs0 = platform::thread_allocation_count();
   for (;;) {
     int i = -1;

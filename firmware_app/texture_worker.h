@@ -8,7 +8,8 @@
 // slot (a memcpy of the planes, only on frames chosen for texturing) or,
 // when every slot is busy, skips the frame and says so; it never waits and
 // never allocates. configure() allocates the pool; the worker thread
-// allocates nothing after start().
+// allocates nothing after start(). Like the mapping thread, the worker
+// lowers its own priority (platform::kBackgroundWorkerNice).
 #pragma once
 
 #include <atomic>
@@ -44,6 +45,7 @@ class TextureWorker {
   std::int64_t frames_textured() const { return textured_.load(); }
   std::int64_t colours_sent() const { return colours_.load(); }
   std::int64_t worker_allocations() const { return worker_allocs_.load(); }
+  int thread_nice() const { return thread_nice_.load(); }  // -1 until the thread runs
   // After stop(): the texture itself.
   const MeshTexture& texture() const { return texture_; }
 
@@ -61,6 +63,7 @@ class TextureWorker {
   platform::SpscQueue<int, 32> free_;  // worker -> tracking thread
   platform::SpscQueue<int, 32> work_;  // tracking thread -> worker; -1 ends the thread
   std::atomic<std::int64_t> textured_{0}, colours_{0}, worker_allocs_{0};
+  std::atomic<int> thread_nice_{-1};
   std::thread thread_;
 };
 

@@ -16,4 +16,13 @@ RealtimeReport lock_memory();                      // mlockall(MCL_CURRENT | MCL
 RealtimeReport set_fifo_priority(int priority);    // SCHED_FIFO for the calling thread
 RealtimeReport pin_to_cpu(int cpu);                // affinity of the calling thread
 
+// Background workers (mapping, texturing) lower their own priority so that
+// the tracking thread wins whenever they share a core: Linux nice value of
+// the calling thread only (setpriority on its thread id), 0..19. Lowering
+// needs no privileges; a value below the current one is refused by an
+// unprivileged process and reported as such.
+inline constexpr int kBackgroundWorkerNice = 10;
+RealtimeReport set_thread_nice(int nice_value);
+int thread_nice();                                 // the calling thread's nice value
+
 }  // namespace st::platform

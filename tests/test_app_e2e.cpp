@@ -10,6 +10,7 @@
 #include "core/sequence.h"
 #include "hal/file_io.h"
 #include "hal/sequence_loader.h"
+#include "platform/realtime.h"
 #include "support/shell.h"
 #include "support/support.h"
 #include "tools/eval/eval_report.h"
@@ -79,6 +80,8 @@ TEST_CASE(
   CHECK(e.reported_frames == 150);
   CHECK(e.tre_median_px < 2.0);
   CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);
+  // The mapping thread yields to the tracking thread on a shared core.
+  CHECK(summary_number(dir / "out", "ba_thread_nice") >= platform::kBackgroundWorkerNice);
 }
 
 // Fast motion: the scope jumps ahead in two blurred bursts (5-6 deg per

@@ -21,6 +21,7 @@
 #include "hal/mesh_file.h"
 #include "hal/sequence_loader.h"
 #include "platform/clock.h"
+#include "platform/realtime.h"
 #include "platform/socket.h"
 #include "support/shell.h"
 #include "support/support.h"
@@ -156,6 +157,7 @@ TEST_CASE(
   // Nothing allocates per frame on any of the three threads after start.
   CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);
   CHECK(summary_number(dir / "out", "texture_thread_allocations") == 0);
+  CHECK(summary_number(dir / "out", "texture_thread_nice") >= platform::kBackgroundWorkerNice);
   CHECK(summary_number(dir / "out", "stream_sink_thread_allocations") == 0);
   CHECK(summary_number(dir / "out", "stream_dropped_messages") == 0);
   CHECK(console_log.find("0 buffers rejected") != std::string::npos);
