@@ -137,3 +137,20 @@ TEST_CASE("sim: organ detail outside 0..2 or not a number is refused") {
     CHECK_FALSE(r.configure(setup.value().scene, setup.value().render));
   }
 }
+
+TEST_CASE("sim: a shutter outside 0..1 or not a number is refused") {
+  SimOptions o;
+  o.frames = 10;
+  for (double bad : {-0.1, 1.5, std::nan("")}) {
+    o.shutter = bad;
+    auto setup = make_setup(o);
+    REQUIRE(setup);
+    SceneRenderer r;
+    CHECK_FALSE(r.configure(setup.value().scene, setup.value().render));
+  }
+  o.shutter = 0.0;
+  auto setup = make_setup(o);
+  REQUIRE(setup);
+  SceneRenderer r;
+  CHECK(r.configure(setup.value().scene, setup.value().render));
+}

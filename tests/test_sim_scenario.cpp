@@ -128,3 +128,23 @@ TEST_CASE("sim: trajectories are deterministic for a seed") {
   CHECK((a.at(17).T_world_camera.matrix() - c.at(17).T_world_camera.matrix()).norm() > 1.0);
   CHECK_FALSE(parse_scenario("spin").ok());
 }
+
+TEST_CASE("sim: the shutter sets the motion blur: none at 0, fewer and shorter smears when shorter") {
+  const Trajectory traj(ScenarioKind::OutOfView, test_scene(), 300, 1);
+  int blurred[3] = {0, 0, 0}, sub_sum[3] = {0, 0, 0};
+  const double shutters[3] = {0.0, 0.25, kDefaultShutter};
+  for (int i = 0; i < 300; ++i)
+    for (int s = 0; s < 3; ++s) {
+      const int n = traj.blur_subframes(i, shutters[s]);
+      blurred[s] += n > 1 ? 1 : 0;
+      sub_sum[s] += n;
+    }
+  MESSAGE("blurred frames at shutter 0 / 0.25 / 0.5: " << blurred[0] << " / " << blurred[1] << " / " << blurred[2]);
+  CHECK(blurred[0] == 0);
+  CHECK(sub_sum[0] == 300);
+  CHECK(blurred[1] > 0);
+  CHECK(blurred[1] < blurred[2]);
+  CHECK(sub_sum[1] < sub_sum[2]);
+  // The default argument is the default shutter.
+  for (int i = 100; i < 130; ++i) CHECK(traj.blur_subframes(i) == traj.blur_subframes(i, kDefaultShutter));
+}

@@ -2,6 +2,7 @@
 // ground truth (docs/sequence-format.md).
 //   scopetrack-sim --scenario NAME --out DIR [--frames N] [--size WxH]
 //                  [--seed S] [--mesh FILE] [--field-stop on|off] [--organ-detail F]
+//                  [--shutter F]
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -17,7 +18,8 @@ void usage() {
                "usage: scopetrack-sim --scenario orbit|fast|outofview|manipulation|invivo --out DIR\n"
                "                      [--frames N (300)] [--size WxH (1280x720; invivo 960x540)]\n"
                "                      [--seed S (1)] [--mesh FILE.ply|stl] [--field-stop on|off]\n"
-               "                      [--organ-detail F (1; lower = smoother tissue)]\n");
+               "                      [--organ-detail F (1; lower = smoother tissue)]\n"
+               "                      [--shutter F (0.5 of the frame interval; 0 = no motion blur)]\n");
 }
 
 bool parse_int(std::string_view s, long long lo, long long hi, long long* out) {
@@ -66,6 +68,11 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
       if (!st::parse_double(v, &f) || !(f >= 0.0 && f <= st::sim::kMaxOrganDetail))  // NaN fails too
         return "--organ-detail wants a number in 0..2 (1: the calibrated tissue texture)";
       o->organ_detail = f;
+    } else if (a == "--shutter") {
+      double f = 0;
+      if (!st::parse_double(v, &f) || !(f >= 0.0 && f <= 1.0))  // NaN fails too
+        return "--shutter wants the open fraction of the frame interval, 0..1 (0: no motion blur)";
+      o->shutter = f;
     } else if (a == "--field-stop") {
       if (v != "on" && v != "off") return "--field-stop wants on or off";
       o->field_stop = v == "on" ? 1 : 0;

@@ -74,6 +74,8 @@ Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settin
   if (Status s = CameraModel::validate(settings.K, settings.distortion); !s) return s;
   if (!(settings.organ_detail >= 0.0 && settings.organ_detail <= kMaxOrganDetail))
     return make_error("organ detail must be a number in 0..2 (1: the calibrated texture)");
+  if (!(settings.shutter >= 0.0 && settings.shutter <= 1.0))
+    return make_error("shutter must be a fraction of the frame interval in 0..1");
   settings_ = settings;
   scene_ = &scene;
   organ_centre_model_ = bounding_box(scene.organ).centre();
@@ -183,10 +185,10 @@ void SceneRenderer::build_camera_maps() {
 }
 
 void SceneRenderer::render(const Trajectory& trajectory, int frame, cv::Mat& rgb, cv::Mat& labels) {
-  const int n = trajectory.blur_subframes(frame);
+  const int n = trajectory.blur_subframes(frame, settings_.shutter);
   for (int k = 0; k < n; ++k) {
-    // Shutter open for half the frame interval, centred on the frame time.
-    const double offset = n == 1 ? 0.0 : (k - (n - 1) / 2.0) / (n - 1) * 0.5;
+    // Sub-frames spread over the open shutter, centred on the frame time.
+    const double offset = n == 1 ? 0.0 : (k - (n - 1) / 2.0) / (n - 1) * settings_.shutter;
     render_subframe(trajectory.at(frame + offset), 1.0f / static_cast<float>(n), k == 0, 2 * k == n - 1);
   }
   finish(frame, rgb, labels);

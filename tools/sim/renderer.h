@@ -45,6 +45,10 @@ struct RenderSettings {
   // calibrated one: 1 matches the real liver's corner density, lower is
   // smoother tissue (0: no fine texture; vessels and mottling stay).
   double organ_detail = 1.0;
+  // Fraction of the frame interval the shutter is open (0..1), centred on
+  // the frame time: the length of the motion blur; 0 renders every frame
+  // sharp.
+  double shutter = kDefaultShutter;
 };
 
 class SceneRenderer {

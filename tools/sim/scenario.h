@@ -15,6 +15,9 @@
 
 namespace st::sim {
 
+// Fraction of the frame interval the shutter is open (motion blur).
+inline constexpr double kDefaultShutter = 0.5;
+
 enum class ScenarioKind { Orbit, Fast, OutOfView, Manipulation, InVivo };
 
 Result<ScenarioKind> parse_scenario(std::string_view name);
@@ -34,9 +37,10 @@ class Trajectory {
 
   // The state at a fractional frame index in [-1, frames] (sub-frames).
   WorldState at(double frame) const;
-  // Sub-frames to average for frame i: 1, or 5..9 (odd) where the image
-  // moves fast, more for a longer smear.
-  int blur_subframes(int frame) const;
+  // Sub-frames to average for frame i, the shutter open for `shutter` of
+  // the frame interval (0..1) centred on the frame time: 1, or 5..9 (odd)
+  // where the image moves fast in that time, more for a longer smear.
+  int blur_subframes(int frame, double shutter = kDefaultShutter) const;
   int frames() const { return frames_; }
   ScenarioKind kind() const { return kind_; }
 

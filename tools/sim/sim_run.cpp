@@ -16,6 +16,7 @@ RenderSettings default_render(const SimOptions& o, int W, int H) {
   r.K = Pinhole{0.72 * W, 0.72 * W, 0.5 * W - 0.5 + 3.25, 0.5 * H - 0.5 - 2.5, W, H};
   r.seed = o.seed;
   r.organ_detail = o.organ_detail;
+  r.shutter = o.shutter;
   const bool invivo = o.scenario == ScenarioKind::InVivo;
   r.field_stop = o.field_stop < 0 ? invivo : o.field_stop == 1;
   if (invivo) {

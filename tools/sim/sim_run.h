@@ -29,6 +29,7 @@ struct SimOptions {
   std::filesystem::path mesh_file;  // empty: the procedural liver
   int field_stop = -1;              // -1: scenario default (invivo only), 0 off, 1 on
   double organ_detail = 1.0;        // RenderSettings::organ_detail (1: calibrated on the real liver)
+  double shutter = kDefaultShutter; // RenderSettings::shutter (0: no motion blur)
   bool progress = false;            // progress bar on stderr
 };
 
