@@ -112,6 +112,15 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   if (Status s = matcher_.configure(mc); !s.ok()) return make_error("tracker: matcher: " + s.message());
   if (Status s = grid_.configure(config.width, config.height); !s.ok()) return make_error("tracker: grid: " + s.message());
   if (Status s = motion_.configure(config.width, config.height); !s.ok()) return make_error("tracker: " + s.message());
+  {
+    const ImagePyramid& pyr = orb_.pyramid();
+    std::array<int, kMaxPyramidLevels> widths{};
+    for (int k = 0; k < pyr.levels(); ++k) widths[static_cast<std::size_t>(k)] = pyr.level(k).width;
+    align_level_ = DirectAligner::choose_level(widths.data(), pyr.levels());
+    const GrayView l = pyr.level(align_level_);
+    if (Status s = aligner_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
+      return make_error("tracker: " + s.message());
+  }
   if (Status s = solver_.configure(kMaxKeypoints); !s.ok()) return make_error("tracker: pose: " + s.message());
   PnpRansacOptions ro;
   ro.min_inliers = config.min_inliers;
@@ -162,9 +171,11 @@ void TrackerImpl::start() {
   T_last_ = T_init_;
   velocity_ = SE3();
   lost_frames_ = strict_frames_left_ = 0;
+  lost_motion_px_ = kUnknownMotion;
   last_inliers_ = 0;
   last_depth_mm_ = 100.0;
   motion_.reset();
+  aligner_.forget_reference();
   ref_keyframe_ = -1;
   reloc_cursor_ = 0;
   ba_window_pending_ = ba_global_pending_ = false;

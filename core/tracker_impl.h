@@ -12,6 +12,7 @@
 #include "core/ba_channel.h"
 #include "core/camera.h"
 #include "core/capacity.h"
+#include "core/direct_alignment.h"
 #include "core/feature_grid.h"
 #include "core/feature_set.h"
 #include "core/image_motion.h"
@@ -64,7 +65,9 @@ class TrackerImpl {
   void reproject_local_map(const SE3& T_camera_model);
   bool weak_first_pass(bool solved, const PoseEstimate& e) const;
   double image_shift_px(const SE3& a, const SE3& b) const;
+  double view_difference_px(const SE3& a, const SE3& b) const;
   SE3 motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted);
+  bool dead_reckon(SE3* T_camera_model);
   int match_local_map(float radius_px);
   bool solve_pose(SE3* T_camera_model, PoseEstimate* e);
   bool track_from(const SE3& T_predicted, float first_radius_px, PoseEstimate* e, TrackResult* r);
@@ -109,6 +112,8 @@ class TrackerImpl {
   OrbMatcher matcher_;
   FeatureGrid grid_;
   ImageMotion motion_;  // whole-view shift between frames: rotation prior under fast turns
+  DirectAligner aligner_;  // while lost: the camera's motion from the images and the mesh depth
+  int align_level_ = 0;    // the ORB pyramid level it works on (about 320 pixels wide)
   PoseSolver solver_;
   PnpRansac ransac_;
   TrackingMap map_;
@@ -157,6 +162,11 @@ class TrackerImpl {
   int last_inliers_ = 0;            // inliers of the last accepted frame
   double last_depth_mm_ = 100.0;    // mean inlier depth of the last accepted frame
   SE3 lost_velocity_, T_dead_reckoned_;  // while lost: the last velocity, carried forward
+  // While lost: how far the view moved since the last frame (level-0 px) by
+  // dead reckoning, kUnknownMotion where it could not be measured.
+  static constexpr double kUnknownMotion = 1e9;
+  double lost_motion_px_ = kUnknownMotion;
+  bool reloc_seed_ok_ = false;  // the relocalised frame's pose may seed a keyframe
   std::array<std::int32_t, kMaxKeyframes> reloc_order_{};  // keyframes by distance to the last pose
   int reloc_order_count_ = 0;
   // Local-map cap: the image in kCapCellsX x kCapCellsY cells, each keeping

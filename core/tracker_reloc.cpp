@@ -1,10 +1,13 @@
 // Relocalisation when lost: features over the whole valid image; first a
-// cheap attempt by projection from the dead-reckoned (then the last good)
-// pose with the wide radius, then brute-force matching against a bounded
-// number of keyframes per frame (the keyframes nearest the last good pose
-// first, then cycling through all), P3P RANSAC, LM, and the same
-// projection tracking at the found pose. Every candidate must pass the
-// strict gates (more inliers, spread, mask agreement). Tracking thread;
+// cheap attempt by projection from the dead-reckoned pose (measured by
+// direct alignment while the organ is in view, else carried forward, then
+// the last good pose) with the wide radius, then brute-force matching
+// against a bounded number of keyframes per frame (the keyframes nearest
+// the last good pose first, then cycling through all), P3P RANSAC, LM, and
+// the same projection tracking at the found pose. Every candidate must pass
+// the strict gates (more inliers, spread, mask agreement), except a pose
+// the measured dead reckoning predicted within the tracking search radius:
+// it passes the normal gates, as a tracked frame would. Tracking thread;
 // allocates nothing.
 #include <algorithm>
 #include <cmath>
@@ -23,20 +26,49 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   // The image motion keeps turning the guess (and stays continuous for the
   // frames after relocalisation).
   const SE3 T_turned = motion_prior(luma, T_dead_reckoned_, lost_velocity_ * T_dead_reckoned_);
-  // The turn that broke tracking slows down (a scope swung fast is stopped
-  // again): carried at full speed, the guess overshot by 40 deg within 10
-  // frames of a simulated burst. The image motion still corrects rotation.
-  lost_velocity_ = SE3::exp(config_.dead_reckoning_decay * lost_velocity_.log());
-  if (lost_frames_ <= config_.dead_reckoning_frames) T_dead_reckoned_ = T_turned;
-  const SE3 T_guess = lost_frames_ <= config_.dead_reckoning_frames ? T_dead_reckoned_ : T_last_;
   lap(Stage::kPyramid, &t, &r);  // image preparation: the small blurred image and its alignment
-  render_at(T_guess);
-  lap(Stage::kRaster, &t, &r);
   extract(luma, false, &r);  // whole valid image: the organ may be anywhere
   lap(Stage::kDetect, &t, &r);
+  // Where the organ is in view, the motion is measured (dead_reckon: this
+  // frame against the last one, with the mesh's depth) and that
+  // measurement is the guess, however long tracking has been lost; the
+  // velocity follows it.
+  SE3 T_measured = T_turned;
+  const bool measured = dead_reckon(&T_measured);
+  // This frame's own motion (its blur), when measured.
+  lost_motion_px_ = measured ? image_shift_px(T_dead_reckoned_, T_measured) : kUnknownMotion;
+  if (measured) {
+    lost_velocity_ = T_measured * T_dead_reckoned_.inverse();
+    T_dead_reckoned_ = T_measured;
+  } else {
+    // The turn that broke tracking slows down (a scope swung fast is
+    // stopped again): carried at full speed, the guess overshot by 40 deg
+    // within 10 frames of a simulated burst. The image motion still
+    // corrects rotation.
+    lost_velocity_ = SE3::exp(config_.dead_reckoning_decay * lost_velocity_.log());
+    if (lost_frames_ <= config_.dead_reckoning_frames) T_dead_reckoned_ = T_turned;
+  }
+  const SE3 T_guess = measured || lost_frames_ <= config_.dead_reckoning_frames ? T_dead_reckoned_ : T_last_;
+  lap(Stage::kPyramid, &t, &r);  // image preparation, dead reckoning
+  render_at(T_guess);
+  lap(Stage::kRaster, &t, &r);
   const QualityGates strict = gates(true);
   PoseEstimate e;
-  bool found = track_from(T_guess, config_.wide_radius_px, &e, &r) && passes(e, strict);
+  const bool solved = track_from(T_guess, config_.wide_radius_px, &e, &r);
+  // Features that land where dead reckoning predicted, within the radius
+  // normal tracking searches around its constant-velocity prediction,
+  // confirm the measured motion: two independent measurements agree, and
+  // the frame is judged like a tracked one (normal gates, no strict frames
+  // after it). Otherwise the strict gates of relocalisation apply.
+  const double agreement_px = solved && measured ? view_difference_px(T_guess, e.T_camera_model) : kUnknownMotion;
+  const bool confirmed = agreement_px <= static_cast<double>(config_.search_radius_px);
+  bool found = solved && passes(e, confirmed ? gates(false) : strict);
+  const bool found_confirmed = found && confirmed;
+  // A keyframe's points stay in the map. Such a frame may seed them only
+  // if it passes the strict gates, or if the two measurements agree within
+  // the refine radius (a weak feature pose that is still several pixels
+  // off left its error in the map for the rest of a run).
+  reloc_seed_ok_ = found && (passes(e, strict) || agreement_px <= static_cast<double>(config_.refine_radius_px));
   PoseEstimate best = e;  // reported measures when nothing passes: the attempt with most inliers
   t = now_ms();
   if (reloc_order_count_ == 0) rank_reloc_keyframes();
@@ -45,12 +77,13 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
     if (kf < 0) break;
     e = PoseEstimate{};
     found = reloc_with_keyframe(kf, &e, &r) && passes(e, strict);
+    reloc_seed_ok_ = found;
     if (found || e.inliers > best.inliers) best = e;
   }
   lap(Stage::kReloc, &t, &r);
   fill_measures(best, &r);
   if (found) {
-    strict_frames_left_ = config_.strict_frames;
+    strict_frames_left_ = found_confirmed ? 0 : config_.strict_frames;
     accept(best, frame_index, TrackState::kRelocalised, &r);
   } else {
     r.state = TrackState::kLost;

@@ -187,6 +187,55 @@ void TrackerImpl::reproject_local_map(const SE3& T_camera_model) {
   }
 }
 
+// Dead reckoning while lost: the camera's motion since the reference frame
+// (the last tracked frame, then each dead-reckoned one) from an ORB pyramid
+// level of both and the mesh rendered at the reference pose (DirectAligner).
+// *T: in, the prediction; out, the estimate if the alignment held. The
+// current frame then becomes the next reference, at the estimate; if it
+// failed (the organ left the view, say) the chain ends and the caller's
+// prediction carries on. Renders at the reference pose.
+bool TrackerImpl::dead_reckon(SE3* T_camera_model) {
+  if (!config_.use_image_motion || !aligner_.has_reference()) return false;
+  const GrayView image = orb_.pyramid().level(align_level_);  // this frame's: extract() ran
+  render_at(aligner_.reference_pose());
+  SE3 T = *T_camera_model;
+  if (!aligner_.align(image, valid_view_, raster_, camera_, &T)) {
+    aligner_.forget_reference();
+    return false;
+  }
+  *T_camera_model = T;
+  aligner_.keep_reference(image, valid_view_, T);
+  return true;
+}
+
+// How far apart two poses put the organ in view (level-0 pixels): organ
+// points on a 16 x 9 grid of the current render (raster_, at whatever pose
+// it was made), projected at a and at b; the mean distance
+// (kUnknownMotion if no grid point is on the organ). Unlike
+// image_shift_px it does not count a turn that a sideways move undoes in
+// the image, and it covers the whole organ in view, not only where a
+// handful of features sit.
+double TrackerImpl::view_difference_px(const SE3& a, const SE3& b) const {
+  if (!raster_valid_) return kUnknownMotion;
+  const ImageView<const float> depth = raster_.depth();
+  const Pinhole& Kr = raster_.camera();
+  const SE3 model_from_raster = raster_pose_.inverse();
+  double sum = 0;
+  int n = 0;
+  for (int gy = 0; gy < 9; ++gy)
+    for (int gx = 0; gx < 16; ++gx) {
+      const int x = (2 * gx + 1) * depth.width / 32, y = (2 * gy + 1) * depth.height / 18;
+      const float d = depth(x, y);
+      if (!(d > 0.f)) continue;
+      const Vec3 p = model_from_raster * Kr.unproject(Vec2(x, y), d);
+      const Vec3 pa = a * p, pb = b * p;
+      if (!(pa.z() > 1.0) || !(pb.z() > 1.0)) continue;
+      sum += (K_.project(pa) - K_.project(pb)).norm();
+      ++n;
+    }
+  return n > 0 ? sum / n : kUnknownMotion;
+}
+
 // Image motion (level-0 pixels) between two poses for the scene at the last
 // tracked depth: rotation plus parallax of the camera centre.
 double TrackerImpl::image_shift_px(const SE3& a, const SE3& b) const {
@@ -372,6 +421,8 @@ TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
     lost_frames_ = 0;
     lost_velocity_ = velocity_;
     T_dead_reckoned_ = T_predicted;  // this frame's best guess (image motion included)
+    // Measured from the last tracked frame where the organ allows.
+    if (dead_reckon(&T_dead_reckoned_)) lost_velocity_ = T_dead_reckoned_ * T_last_.inverse();
     reloc_order_count_ = 0;  // ranked at the first relocalisation attempt
     velocity_ = SE3();
   }
@@ -395,9 +446,14 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   r->pose_valid = true;
   r->T_camera_model = e.T_camera_model;
   velocity_ = state == TrackState::kTracking ? e.T_camera_model * T_last_.inverse() : SE3();
-  // How far the view moved since the last frame (level-0 px): blur.
-  const double motion_px = state == TrackState::kTracking ? image_shift_px(T_last_, e.T_camera_model) : 0.0;
+  // How far the view moved since the last frame (level-0 px): blur. After
+  // a lost spell, as dead reckoning measured it (kUnknownMotion if not).
+  const double motion_px = state == TrackState::kTracking      ? image_shift_px(T_last_, e.T_camera_model)
+                           : state == TrackState::kRelocalised ? lost_motion_px_
+                                                               : 0.0;
   T_last_ = e.T_camera_model;
+  if (config_.use_image_motion)  // where dead reckoning starts if the next frame is lost
+    aligner_.keep_reference(orb_.pyramid().level(align_level_), valid_view_, e.T_camera_model);
   last_inliers_ = e.inliers;
   last_depth_mm_ = e.mean_depth_mm;
   lost_ = false;
@@ -406,11 +462,15 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   // No keyframe from a frame that moved fast: it is blurred, its pose is
   // less accurate, and the keyframe's mesh-depth points would carry that
   // error into the map for good (fast seed 4: 1-3 deg off after a burst).
-  if (strict_frames_left_ > 0) {
-    --strict_frames_left_;
-  } else if (motion_px <= static_cast<double>(config_.keyframe_max_motion_px) && need_keyframe(e)) {
+  // Under the strict gates after a relocalisation no keyframe is taken.
+  // The relocalised frame itself may seed one (the scope may have come back
+  // to a view the map hardly covers, and without new points the next frames
+  // cannot pass) when relocalise() judged its pose fit to (reloc_seed_ok_)
+  // and dead reckoning measured it as slow, so not blurred.
+  const bool may_add = state == TrackState::kRelocalised ? reloc_seed_ok_ : strict_frames_left_ == 0;
+  if (strict_frames_left_ > 0) --strict_frames_left_;
+  if (may_add && motion_px <= static_cast<double>(config_.keyframe_max_motion_px) && need_keyframe(e))
     r->keyframe = add_keyframe(e.T_camera_model, frame_index, true) >= 0;
-  }
   lap(Stage::kMap, &t, r);
 }
 

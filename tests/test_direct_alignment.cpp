@@ -1,0 +1,201 @@
+// DirectAligner (core/direct_alignment.h): dead reckoning through the
+// simulator's fast swing, where the frames are smeared and ORB finds
+// nothing; refusal without the organ or a reference; no allocation after
+// configure().
+#include <doctest/doctest.h>
+
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include <opencv2/imgproc.hpp>
+
+#include "core/direct_alignment.h"
+#include "core/image_pyramid.h"
+#include "core/rasterizer.h"
+#include "support/alloc_guard.h"
+#include "tools/sim/renderer.h"
+#include "tools/sim/sim_run.h"
+
+using namespace st;
+using namespace st::sim;
+
+namespace {
+
+SimSetup setup_for(ScenarioKind kind, int frames, std::uint64_t seed) {
+  SimOptions o;
+  o.scenario = kind;
+  o.frames = frames;
+  o.seed = seed;
+  o.width = 640;
+  o.height = 360;
+  auto s = make_setup(o);
+  REQUIRE(s);
+  return std::move(s.value());
+}
+
+// Frames of a simulated sequence as the tracker hands them to the aligner:
+// the ORB pyramid level about 320 pixels wide (8 levels, factor 1.2).
+struct Frames {
+  SimSetup setup;
+  Trajectory trajectory;
+  CameraModel camera;
+  ImagePyramid pyramid;
+  int level = 0;
+  std::vector<Image<std::uint8_t>> images;
+  MeshRasterizer raster;
+  DirectAligner aligner;
+
+  Frames(ScenarioKind kind, int frames, std::uint64_t seed)
+      : setup(setup_for(kind, frames, seed)), trajectory(kind, setup.scene, frames, seed),
+        camera(setup.render.K, setup.render.distortion) {
+    const Pinhole& K = setup.render.K;
+    REQUIRE(pyramid.configure(K.width, K.height, 8, 1.2f));
+    std::array<int, 8> widths{};
+    for (int k = 0; k < 8; ++k) widths[static_cast<std::size_t>(k)] = pyramid.level(k).width;
+    level = DirectAligner::choose_level(widths.data(), 8);
+    RasterConfig rc;
+    rc.width = K.width;
+    rc.height = K.height;
+    rc.downscale = 2;
+    REQUIRE(raster.configure(setup.scene.organ, rc));
+    const GrayView l = pyramid.level(level);
+    REQUIRE(aligner.configure(l.width, l.height, pyramid.scale(level)));
+  }
+
+  SE3 T_camera_model(int frame) const { return trajectory.at(frame).T_model_camera().inverse(); }
+  GrayView image(std::size_t i) const { return images[i].cview(); }
+
+  void render(const std::vector<int>& frames) {
+    SceneRenderer renderer;
+    REQUIRE(renderer.configure(setup.scene, setup.render));
+    for (int f : frames) {
+      cv::Mat rgb, labels, gray;
+      renderer.render(trajectory, f, rgb, labels);
+      cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
+      REQUIRE(pyramid.build_levels(GrayView(gray.data, gray.cols, gray.rows, static_cast<std::ptrdiff_t>(gray.step))));
+      const GrayView l = pyramid.level(level);
+      Image<std::uint8_t> copy;
+      copy.allocate(l.width, l.height);
+      for (int y = 0; y < l.height; ++y)
+        for (int x = 0; x < l.width; ++x) copy.view()(x, y) = l(x, y);
+      images.push_back(std::move(copy));
+    }
+  }
+
+  // Mean image distance (pixels) between where organ vertices project at T
+  // and at the truth, over vertices in front of the camera inside the image.
+  double reprojection_px(const SE3& T, const SE3& truth) const {
+    const Pinhole& K = setup.render.K;
+    const Mesh& organ = setup.scene.organ;
+    double sum = 0;
+    int n = 0;
+    for (int i = 0; i < organ.vertex_count(); i += 5) {
+      const Vec3 pt = truth * organ.vertex(i), pe = T * organ.vertex(i);
+      if (pt.z() < 1.0 || pe.z() < 1.0) continue;
+      const Vec2 a = K.project(pt);
+      if (!K.in_image(a)) continue;
+      sum += (K.project(pe) - a).norm();
+      ++n;
+    }
+    REQUIRE(n > 100);
+    return sum / n;
+  }
+};
+
+}  // namespace
+
+TEST_CASE("direct alignment: through the fast swing's smeared frames the motion is measured from the mesh depth" *
+          doctest::timeout(120)) {
+  // fast seed 2 at 640x360: the first burst peaks at frames 90-93 (5-6 deg
+  // and 11-15 mm per frame); frames 89-94 are rendered with motion blur.
+  Frames seq(ScenarioKind::Fast, 300, 2);
+  const std::vector<int> frames = {89, 90, 91, 92, 93, 94};
+  seq.render(frames);
+  for (int f : frames) CHECK(seq.trajectory.blur_subframes(f) > 1);
+  const Pinhole& K = seq.setup.render.K;
+  CHECK(seq.image(0).width == 309);  // level 4: 640 / 1.2^4
+
+  // Each pair from the true pose of the earlier frame, the guess standing
+  // still (off by the whole frame-to-frame motion).
+  for (std::size_t k = 1; k < frames.size(); ++k) {
+    CAPTURE(frames[k]);
+    const SE3 T_ref = seq.T_camera_model(frames[k - 1]), truth = seq.T_camera_model(frames[k]);
+    seq.aligner.keep_reference(seq.image(k - 1), GrayView(), T_ref);
+    seq.raster.render(T_ref, K);
+    SE3 T = T_ref;
+    DirectAlignSummary s;
+    const bool ok = seq.aligner.align(seq.image(k), GrayView(), seq.raster, seq.camera, &T, &s);
+    const double before = seq.reprojection_px(T_ref, truth), after = seq.reprojection_px(T, truth);
+    MESSAGE("frame " << frames[k] << ": " << s.points << " points, " << s.used << " used, " << s.iterations
+                     << " iterations; organ reprojection " << before << " px -> " << after << " px");
+    REQUIRE(ok);
+    CHECK(before > 10.0);
+    CHECK(after < 1.5);
+  }
+
+  // Chained over the whole swing (each estimate the next reference, as
+  // the tracker does while lost), starting from the truth at frame 89.
+  SE3 T = seq.T_camera_model(frames[0]), velocity;
+  for (std::size_t k = 1; k < frames.size(); ++k) {
+    seq.aligner.keep_reference(seq.image(k - 1), GrayView(), T);
+    seq.raster.render(T, K);
+    SE3 guess = velocity * T;
+    REQUIRE(seq.aligner.align(seq.image(k), GrayView(), seq.raster, seq.camera, &guess));
+    velocity = guess * T.inverse();
+    T = guess;
+  }
+  const SE3 truth = seq.T_camera_model(frames.back());
+  const double drift = seq.reprojection_px(T, truth);
+  const double stood_still = seq.reprojection_px(seq.T_camera_model(frames[0]), truth);
+  MESSAGE("chained over frames 89-94: " << drift << " px off (standing still: " << stood_still << " px)");
+  CHECK(stood_still > 40.0);
+  CHECK(drift < 5.0);
+}
+
+TEST_CASE("direct alignment: no organ, no reference or a bad pose is refused; align allocates nothing" *
+          doctest::timeout(120)) {
+  Frames seq(ScenarioKind::Orbit, 100, 1);
+  seq.render({10, 11});
+  const Pinhole& K = seq.setup.render.K;
+  DirectAligner unconfigured;
+  CHECK_FALSE(unconfigured.configure(8, 8, 8.0));
+  CHECK_FALSE(unconfigured.configure(320, 180, std::nan("")));
+  const SE3 T_ref = seq.T_camera_model(10);
+  SE3 T = T_ref;
+  // No reference yet.
+  CHECK_FALSE(seq.aligner.align(seq.image(1), GrayView(), seq.raster, seq.camera, &T));
+  seq.aligner.keep_reference(seq.image(0), GrayView(), T_ref);
+  REQUIRE(seq.aligner.has_reference());
+  // The render looks away from the organ: no reference point has a depth.
+  const SE3 away = SE3(so3_exp(Vec3(0, M_PI, 0)), Vec3::Zero()) * T_ref;
+  seq.raster.render(away, K);
+  CHECK_FALSE(seq.aligner.align(seq.image(1), GrayView(), seq.raster, seq.camera, &T));
+  CHECK((T.matrix() - T_ref.matrix()).norm() == 0.0);  // untouched
+  // A guess that is not a pose; an image of the wrong size.
+  seq.raster.render(T_ref, K);
+  SE3 bad(Mat3::Identity(), Vec3(std::nan(""), 0, 0));
+  CHECK_FALSE(seq.aligner.align(seq.image(1), GrayView(), seq.raster, seq.camera, &bad));
+  CHECK_FALSE(seq.aligner.align(seq.image(1).sub(0, 0, 100, 100), GrayView(), seq.raster, seq.camera, &T));
+  // The real thing, counted.
+  SE3 guess = T_ref;
+  {
+    test::AllocationCounter allocs;
+    CHECK(seq.aligner.align(seq.image(1), GrayView(), seq.raster, seq.camera, &guess));
+    seq.aligner.keep_reference(seq.image(1), GrayView(), guess);
+    CHECK(allocs.count() == 0);
+  }
+  CHECK(seq.reprojection_px(guess, seq.T_camera_model(11)) < 1.0);
+  // A frame whose valid mask covers nothing cannot serve as a reference.
+  std::vector<std::uint8_t> none(static_cast<std::size_t>(K.width * K.height), 0);
+  seq.aligner.keep_reference(seq.image(0), GrayView(none.data(), K.width, K.height), T_ref);
+  guess = T_ref;
+  CHECK_FALSE(seq.aligner.align(seq.image(1), GrayView(), seq.raster, seq.camera, &guess));
+  CHECK_FALSE(seq.aligner.has_reference());
+  // Nor can an image of the wrong size or a mask larger than a frame.
+  seq.aligner.keep_reference(seq.image(0).sub(0, 0, 50, 50), GrayView(), T_ref);
+  CHECK_FALSE(seq.aligner.has_reference());
+  std::vector<std::uint8_t> huge(static_cast<std::size_t>(4 * K.width * K.height), 1);
+  seq.aligner.keep_reference(seq.image(0), GrayView(huge.data(), 2 * K.width, 2 * K.height), T_ref);
+  CHECK_FALSE(seq.aligner.has_reference());
+}
