@@ -64,6 +64,15 @@ int data_lines(const std::filesystem::path& p) {
   return n;
 }
 
+// Initialised, no wrong pose, and lost / TRE median / TRE p95 within bounds.
+void check_run(const EvalResult& e, double max_lost_pct, double max_tre_median_px, double max_tre_p95_px) {
+  CHECK(e.init_ok);
+  CHECK(e.wrong_pct == 0.0);
+  CHECK(e.lost_pct <= max_lost_pct);
+  CHECK(e.tre_median_px < max_tre_median_px);
+  CHECK(e.tre_p95_px < max_tre_p95_px);
+}
+
 }  // namespace
 
 // Issue 6's end-to-end gate: init ok, lost 0, median TRE < 2 px, no wrong pose.
@@ -100,12 +109,7 @@ TEST_CASE(
 TEST_CASE("app_e2e: fast bursts (seed 4, 640x360): no biased map after a burst, no wrong pose" *
           doctest::timeout(test::budget_s(300))) {
   const EvalReport report = simulate_track_evaluate(test::scratch_dir("app_e2e_fast"), 300, "640x360", 4, "fast");
-  const EvalResult& e = report.result;
-  CHECK(e.init_ok);
-  CHECK(e.wrong_pct == 0.0);
-  CHECK(e.lost_pct <= 30.0);
-  CHECK(e.tre_median_px < 1.2);
-  CHECK(e.tre_p95_px < 4.0);
+  check_run(report.result, 30.0, 1.2, 4.0);
 }
 
 // Fast seed 2: the first burst swings the scope ~16 deg and ~40 mm into
@@ -119,12 +123,7 @@ TEST_CASE("app_e2e: a fast swing into unmapped tissue is recovered (fast seed 2,
           doctest::timeout(test::budget_s(600))) {
   const EvalReport report =
       simulate_track_evaluate(test::scratch_dir("app_e2e_fast_swing"), 300, "960x540", 2, "fast");
-  const EvalResult& e = report.result;
-  CHECK(e.init_ok);
-  CHECK(e.wrong_pct == 0.0);
-  CHECK(e.lost_pct <= 10.0);
-  CHECK(e.tre_median_px < 2.0);
-  CHECK(e.tre_p95_px < 6.0);
+  check_run(report.result, 10.0, 2.0, 6.0);
 }
 
 TEST_CASE("app_e2e: 200 simulated frames replay with zero heap allocations on the tracking thread" *
