@@ -100,8 +100,9 @@ void DirectAligner::sample_valid(GrayView valid, std::uint8_t* mask) const {
       }
       mask[static_cast<std::size_t>(y) * w + x] = v;
     }
-  // Erode (a pixel stays valid only if its 4-neighbours are), in place row
-  // by row with the previous row's original kept aside in the border bit.
+  // Erode (a pixel stays valid only if its 4-neighbours are), in place:
+  // bit 0 keeps each pixel's sampled value for the neighbours still to come,
+  // bit 1 collects the result, shifted down at the end.
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       const std::size_t i = static_cast<std::size_t>(y) * w + x;
