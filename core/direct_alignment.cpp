@@ -275,14 +275,20 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
     const int xi = static_cast<int>(*sx + 0.5), yi = static_cast<int>(*sy + 0.5);
     return l.cur_mask[static_cast<std::size_t>(yi) * w + xi] != 0;
   };
+  // Point i's residual at pose Tp, gain ap, offset bp (false if it left the
+  // usable image); its camera point and image position for the Jacobian.
+  const auto residual = [&](const SE3& Tp, double ap, double bp, int i, double* r, Vec3* pc, double* sx,
+                            double* sy) {
+    if (!project(Tp, i, pc, sx, sy)) return false;
+    *r = bilinear(l.cur.data(), w, *sx, *sy) - (ap * intensity_[static_cast<std::size_t>(i)] + bp);
+    return true;
+  };
   // Robust scale: median absolute residual at the start (MAD * 1.4826).
   int m = 0;
   for (int i = 0; i < n; ++i) {
     Vec3 pc;
-    double sx, sy;
-    if (!project(*T, i, &pc, &sx, &sy)) continue;
-    const double r = bilinear(l.cur.data(), w, sx, sy) - (*a * intensity_[static_cast<std::size_t>(i)] + *b);
-    residuals_[static_cast<std::size_t>(m++)] = std::abs(r);
+    double r, sx, sy;
+    if (residual(*T, *a, *b, i, &r, &pc, &sx, &sy)) residuals_[static_cast<std::size_t>(m++)] = std::abs(r);
   }
   if (m < 20) return false;
   std::nth_element(residuals_.begin(), residuals_.begin() + m / 2, residuals_.begin() + m);
@@ -294,12 +300,11 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
     *used = 0;
     for (int i = 0; i < n; ++i) {
       Vec3 pc;
-      double sx, sy;
-      if (!project(Tp, i, &pc, &sx, &sy)) {
+      double r, sx, sy;
+      if (!residual(Tp, ap, bp, i, &r, &pc, &sx, &sy)) {
         c += out_cost;
         continue;
       }
-      const double r = bilinear(l.cur.data(), w, sx, sy) - (ap * intensity_[static_cast<std::size_t>(i)] + bp);
       c += huber_cost(r, k);
       ++*used;
     }
@@ -314,10 +319,8 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
     Vec8 g = Vec8::Zero();
     for (int i = 0; i < n; ++i) {
       Vec3 pc;
-      double sx, sy;
-      if (!project(*T, i, &pc, &sx, &sy)) continue;
-      const double ir = intensity_[static_cast<std::size_t>(i)];
-      const double r = bilinear(l.cur.data(), w, sx, sy) - (*a * ir + *b);
+      double r, sx, sy;
+      if (!residual(*T, *a, *b, i, &r, &pc, &sx, &sy)) continue;
       const double gx = bilinear(l.gx.data(), w, sx, sy), gy = bilinear(l.gy.data(), w, sx, sy);
       const double iz = 1.0 / pc.z();
       // d(small position)/d(camera point), distortion's own Jacobian left out.
@@ -326,7 +329,7 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
       Vec8 J;
       J.head<3>() = pc.cross(dI);  // dX/domega = -[X]x, so dI/domega = X x dI
       J.segment<3>(3) = dI;
-      J(6) = -ir;
+      J(6) = -intensity_[static_cast<std::size_t>(i)];
       J(7) = -1.0;
       const double wgt = std::abs(r) <= k ? 1.0 : k / std::abs(r);
       H.noalias() += wgt * J * J.transpose();
@@ -359,8 +362,6 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
     if (!improved) break;
   }
   s->used = used;
-  s->sigma = sigma;
-  s->rms = n > 0 ? std::sqrt(2.0 * cost / n) : 0.0;
   return true;
 }
 
@@ -386,23 +387,16 @@ bool DirectAligner::align(GrayView image, GrayView valid, const MeshRasterizer& 
   for (int li = 0; li < levels_used_; ++li) high_pass(&levels_[li], false);
   SE3 T = *T_camera_model;
   double a = 1.0, b = 0.0;
-  for (int li = levels_used_ - 1; li >= 0; --li) {
+  bool ok = true;
+  for (int li = levels_used_ - 1; li >= 0 && ok; --li) {
     Level& l = levels_[li];
     gradients(&l);
-    const int n = select_points(l, raster, camera);
-    s.points = n;
-    if (n < kMinPoints) {
-      if (summary) *summary = s;
-      return false;
-    }
-    if (!solve_level(l, n, camera, &T, &a, &b, &s)) {
-      if (summary) *summary = s;
-      return false;
-    }
+    s.points = select_points(l, raster, camera);
+    ok = s.points >= kMinPoints && solve_level(l, s.points, camera, &T, &a, &b, &s);
   }
   if (summary) *summary = s;
   // Most of the organ seen in the reference must still be in view.
-  if (s.used < kMinPoints || 2 * s.used < s.points || !T.all_finite()) return false;
+  if (!ok || s.used < kMinPoints || 2 * s.used < s.points || !T.all_finite()) return false;
   *T_camera_model = T;
   return true;
 }

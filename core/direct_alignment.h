@@ -49,9 +49,7 @@ namespace st {
 struct DirectAlignSummary {
   int points = 0;        // reference points with depth at the finest level
   int used = 0;          // of those, inside the current image at the end
-  int iterations = 0;    // over both levels
-  double sigma = 0;      // robust residual scale at the finest level (small-image units)
-  double rms = 0;        // Huber-weighted residual RMS at the end (same units)
+  int iterations = 0;    // over all levels
 };
 
 class DirectAligner {
