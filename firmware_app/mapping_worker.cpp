@@ -59,10 +59,7 @@ void MappingWorker::release_job(const BaJob* job) {
 }
 
 void MappingWorker::run() {
-  // Refused only when the process already runs at a lower priority than
-  // this (a nice launcher); the thread then keeps that one, as reported.
-  platform::set_thread_nice(platform::kBackgroundWorkerNice);
-  stats_.thread_nice = platform::thread_nice();
+  stats_.thread_nice = platform::become_background_thread();
   for (;;) {
     std::int32_t slot = -1;
     queue_.pop_wait(&slot);

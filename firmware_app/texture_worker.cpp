@@ -67,8 +67,7 @@ void TextureWorker::stop() {
 }
 
 void TextureWorker::run() {
-  platform::set_thread_nice(platform::kBackgroundWorkerNice);  // its report allocates: before the count
-  thread_nice_.store(platform::thread_nice());
+  thread_nice_.store(platform::become_background_thread());  // allocates: before the count
   const std::uint64_t allocs0 = platform::thread_allocation_count();
   for (;;) {
     int i = -1;

@@ -46,6 +46,11 @@ RealtimeReport set_thread_nice(int nice_value) {
                      std::to_string(thread_nice())};
 }
 
+int become_background_thread() {
+  set_thread_nice(kBackgroundWorkerNice);
+  return thread_nice();
+}
+
 int thread_nice() {
   errno = 0;
   const int v = getpriority(PRIO_PROCESS, static_cast<id_t>(gettid()));

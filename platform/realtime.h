@@ -24,5 +24,10 @@ RealtimeReport pin_to_cpu(int cpu);                // affinity of the calling th
 inline constexpr int kBackgroundWorkerNice = 10;
 RealtimeReport set_thread_nice(int nice_value);
 int thread_nice();                                 // the calling thread's nice value
+// What a background worker calls first: set_thread_nice(kBackgroundWorkerNice),
+// then the nice value the thread has (the process's own when that is
+// already lower in priority and raising is not allowed). Allocates (the
+// report's message): call it before counting a thread's allocations.
+int become_background_thread();
 
 }  // namespace st::platform

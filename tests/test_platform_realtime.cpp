@@ -24,6 +24,11 @@ TEST_CASE("set_thread_nice lowers the calling thread only; values outside 0..19 
   CHECK(worker_nice == expected);
   CHECK(report.ok == (expected == platform::kBackgroundWorkerNice));
   CHECK(platform::thread_nice() == main_before);
+  // The workers' call does the same and says where it ended up.
+  int background = -100;
+  std::thread([&] { background = platform::become_background_thread(); }).join();
+  CHECK(background == expected);
+  CHECK(platform::thread_nice() == main_before);
 
   for (int bad : {-1, 20, -20}) {
     const platform::RealtimeReport r = platform::set_thread_nice(bad);
