@@ -75,6 +75,17 @@ struct Frames {
   }
 
   SE3 T_camera_model(int frame) const { return trajectory.at(frame).T_model_camera().inverse(); }
+
+  // Aligns rendered frame cur to rendered frame ref (at pose T_ref) from
+  // the guess *T, as the tracker's dead reckoning does: the reference kept,
+  // the mesh rendered at T_ref. with_valid: the frames' valid masks (else
+  // every pixel counts).
+  bool align(std::size_t ref, std::size_t cur, const SE3& T_ref, SE3* T, bool with_valid,
+             DirectAlignSummary* s = nullptr) {
+    aligner.keep_reference(image(ref), with_valid ? valid_mask(ref) : GrayView(), T_ref);
+    raster.render(T_ref, setup.render.K);
+    return aligner.align(image(cur), with_valid ? valid_mask(cur) : GrayView(), raster, camera, T, s);
+  }
   GrayView image(std::size_t i) const { return images[i].cview(); }
   GrayView valid_mask(std::size_t i) const { return valid[i].cview(); }
 
@@ -122,7 +133,6 @@ TEST_CASE("direct alignment: through the fast swing's smeared frames the motion 
   const std::vector<int> frames = {89, 90, 91, 92, 93, 94};
   seq.render(frames);
   for (int f : frames) CHECK(seq.trajectory.blur_subframes(f) > 1);
-  const Pinhole& K = seq.setup.render.K;
   CHECK(seq.image(0).width == 309);  // level 4: 640 / 1.2^4
 
   // Each pair from the true pose of the earlier frame, the guess standing
@@ -130,11 +140,9 @@ TEST_CASE("direct alignment: through the fast swing's smeared frames the motion 
   for (std::size_t k = 1; k < frames.size(); ++k) {
     CAPTURE(frames[k]);
     const SE3 T_ref = seq.T_camera_model(frames[k - 1]), truth = seq.T_camera_model(frames[k]);
-    seq.aligner.keep_reference(seq.image(k - 1), GrayView(), T_ref);
-    seq.raster.render(T_ref, K);
     SE3 T = T_ref;
     DirectAlignSummary s;
-    const bool ok = seq.aligner.align(seq.image(k), GrayView(), seq.raster, seq.camera, &T, &s);
+    const bool ok = seq.align(k - 1, k, T_ref, &T, false, &s);
     const double before = seq.reprojection_px(T_ref, truth), after = seq.reprojection_px(T, truth);
     MESSAGE("frame " << frames[k] << ": " << s.points << " points, " << s.used << " used, " << s.iterations
                      << " iterations; organ reprojection " << before << " px -> " << after << " px");
@@ -147,10 +155,8 @@ TEST_CASE("direct alignment: through the fast swing's smeared frames the motion 
   // the tracker does while lost), starting from the truth at frame 89.
   SE3 T = seq.T_camera_model(frames[0]), velocity;
   for (std::size_t k = 1; k < frames.size(); ++k) {
-    seq.aligner.keep_reference(seq.image(k - 1), GrayView(), T);
-    seq.raster.render(T, K);
     SE3 guess = velocity * T;
-    REQUIRE(seq.aligner.align(seq.image(k), GrayView(), seq.raster, seq.camera, &guess));
+    REQUIRE(seq.align(k - 1, k, T, &guess, false));
     velocity = guess * T.inverse();
     T = guess;
   }
@@ -219,7 +225,6 @@ TEST_CASE("direct alignment: the field stop's static edge and lens distortion (i
   Frames seq(ScenarioKind::InVivo, 300, 1);
   const std::vector<int> frames = {100, 112, 124, 136};
   seq.render(frames);
-  const Pinhole& K = seq.setup.render.K;
   int black = 0;
   for (int y = 0; y < seq.valid[0].height(); ++y)
     for (int x = 0; x < seq.valid[0].width(); ++x) black += seq.valid_mask(0)(x, y) == 0 ? 1 : 0;
@@ -227,11 +232,9 @@ TEST_CASE("direct alignment: the field stop's static edge and lens distortion (i
   for (std::size_t k = 1; k < frames.size(); ++k) {
     CAPTURE(frames[k]);
     const SE3 T_ref = seq.T_camera_model(frames[k - 1]), truth = seq.T_camera_model(frames[k]);
-    seq.aligner.keep_reference(seq.image(k - 1), seq.valid_mask(k - 1), T_ref);
-    seq.raster.render(T_ref, K);
     SE3 T = T_ref;
     DirectAlignSummary s;
-    REQUIRE(seq.aligner.align(seq.image(k), seq.valid_mask(k), seq.raster, seq.camera, &T, &s));
+    REQUIRE(seq.align(k - 1, k, T_ref, &T, true, &s));
     const double before = seq.reprojection_px(T_ref, truth), after = seq.reprojection_px(T, truth);
     MESSAGE("frames " << frames[k - 1] << " -> " << frames[k] << ": " << s.points << " points; organ reprojection "
                       << before << " px -> " << after << " px");
