@@ -14,6 +14,7 @@
 #include "core/y4m.h"
 #include "hal/file_io.h"
 #include "hal/mesh_file.h"
+#include "support/shell.h"
 #include "support/support.h"
 #include "tools/sim/renderer.h"
 #include "tools/sim/sim_run.h"
@@ -228,4 +229,20 @@ TEST_CASE("sim sequence: bad options are refused with a message") {
   o.width = 640;
   o.mesh_file = o.out_dir / "missing.ply";
   CHECK_FALSE(run_simulation(o).ok());
+}
+
+TEST_CASE("sim CLI: --shutter and --organ-detail refuse what is not a number in range, writing nothing") {
+  const auto dir = st::test::scratch_dir("sim_cli_bad");
+  const std::string log = (dir / "log").string();
+  for (const char* opt : {"--shutter", "--organ-detail"})
+    for (const char* bad : {"nan", "-0.1", "3", "0.5x", "''", "1e"}) {
+      CAPTURE(opt);
+      CAPTURE(bad);
+      const std::string cmd = st::test::bin_command("scopetrack-sim") + " --scenario orbit --frames 2 --out " +
+                              st::test::shell_quoted(dir / "seq") + " " + opt + " " + bad + " > " +
+                              st::test::shell_quoted(log) + " 2>&1";
+      CHECK(st::test::run_shell(cmd) == 2);
+      CHECK(st::test::read_file_bytes(log).find(std::string(opt) + " wants") != std::string::npos);
+      CHECK_FALSE(std::filesystem::exists(dir / "seq" / "video.y4m"));
+    }
 }

@@ -32,6 +32,14 @@ bool parse_int(std::string_view s, long long lo, long long hi, long long* out) {
   return true;
 }
 
+// A number in [lo, hi] (st::parse_double: locale-free; NaN fails the range).
+bool parse_real(std::string_view s, double lo, double hi, double* out) {
+  double v = 0;
+  if (!st::parse_double(s, &v) || !(v >= lo && v <= hi)) return false;
+  *out = v;
+  return true;
+}
+
 // Returns an error message, or empty when all arguments were understood.
 std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
   bool have_scenario = false;
@@ -64,15 +72,11 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
     } else if (a == "--mesh") {
       o->mesh_file = std::string(v);
     } else if (a == "--organ-detail") {
-      double f = 0;
-      if (!st::parse_double(v, &f) || !(f >= 0.0 && f <= st::sim::kMaxOrganDetail))  // NaN fails too
+      if (!parse_real(v, 0.0, st::sim::kMaxOrganDetail, &o->organ_detail))
         return "--organ-detail wants a number in 0..2 (1: the calibrated tissue texture)";
-      o->organ_detail = f;
     } else if (a == "--shutter") {
-      double f = 0;
-      if (!st::parse_double(v, &f) || !(f >= 0.0 && f <= 1.0))  // NaN fails too
+      if (!parse_real(v, 0.0, 1.0, &o->shutter))
         return "--shutter wants the open fraction of the frame interval, 0..1 (0: no motion blur)";
-      o->shutter = f;
     } else if (a == "--field-stop") {
       if (v != "on" && v != "off") return "--field-stop wants on or off";
       o->field_stop = v == "on" ? 1 : 0;

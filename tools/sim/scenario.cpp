@@ -176,13 +176,12 @@ WorldState Trajectory::at(double frame) const {
 int Trajectory::blur_subframes(int frame, double shutter) const {
   // Blur where the scope turns more than 1 deg or moves > 2 mm while the
   // shutter is open (a ~10 px smear at 1280x720; by default half the frame
-  // interval). The sub-frames sample
-  // the exposure densely enough for a continuous smear, as a real sensor
-  // integrates it: about 0.3 deg of view apart (~5 px at 1280x720), up to
-  // 9 sub-frames (the simulator's 20 frames/s budget), rather than always 5
-  // ghost copies (5 sub-frames of a 60 px smear were 15 px apart, each copy
-  // with sharp corners of its own). Odd, so one sub-frame sits at the frame
-  // time (the labels come from it).
+  // interval). The sub-frames sample the exposure densely enough for a
+  // continuous smear, as a real sensor integrates it: about 0.3 deg of view
+  // apart (~5 px at 1280x720), up to 9 sub-frames (the simulator's 20
+  // frames/s budget), rather than always 5 ghost copies (5 sub-frames of a
+  // 60 px smear were 15 px apart, each copy with sharp corners of its own).
+  // Odd, so one sub-frame sits at the frame time (the labels come from it).
   if (!(shutter > 0.0)) return 1;  // an instantaneous exposure: no smear
   const WorldState a = at(frame - 0.5 * shutter), b = at(frame + 0.5 * shutter);
   const PoseDelta d = pose_delta(a.T_model_camera(), b.T_model_camera());
