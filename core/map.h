@@ -39,6 +39,7 @@ struct MapPoint {
   int found = 0;                       // frames it was a pose inlier
   int last_seen_frame = -1;
   int created_frame = -1;
+  bool anchored = true;                // made by a keyframe of a frame that passed the normal gates
 };
 
 // One keypoint of a keyframe linked to a map point.

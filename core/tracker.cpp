@@ -64,6 +64,11 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
   if (c.min_inliers < 6) return err("min_inliers must be >= 6 (a pose has 6 degrees of freedom)");
   if (!(c.min_inlier_ratio >= 0 && c.min_inlier_ratio <= 1) || !(c.min_mask_agreement >= 0 && c.min_mask_agreement <= 1))
     return err("min_inlier_ratio and min_mask_agreement must be in [0, 1]");
+  if (!(c.confirmed_min_inlier_ratio >= 0 && c.confirmed_min_inlier_ratio <= 1) ||
+      !(c.confirmed_keyframe_min_anchored >= 0 && c.confirmed_keyframe_min_anchored <= 1))
+    return err("confirmed_min_inlier_ratio and confirmed_keyframe_min_anchored must be in [0, 1]");
+  if (!(c.confirm_agreement_px >= 0 && c.confirm_agreement_px <= 1000))
+    return err("confirm_agreement_px must be in [0, 1000]");
   if (!(c.max_rms_px > 0) || !(c.max_jump_deg > 0) || !(c.max_jump_mm > 0))
     return err("max_rms_px, max_jump_deg and max_jump_mm must be positive");
   if (!(c.search_radius_px > 0.f) || !(c.wide_radius_px >= c.search_radius_px) || !(c.refine_radius_px > 0.f))
@@ -119,6 +124,8 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
     align_level_ = DirectAligner::choose_level(widths.data(), pyr.levels());
     const GrayView l = pyr.level(align_level_);
     if (Status s = aligner_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
+      return make_error("tracker: " + s.message());
+    if (Status s = anchor_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
       return make_error("tracker: " + s.message());
   }
   if (Status s = solver_.configure(kMaxKeypoints); !s.ok()) return make_error("tracker: pose: " + s.message());
@@ -176,6 +183,7 @@ void TrackerImpl::start() {
   last_depth_mm_ = 100.0;
   motion_.reset();
   aligner_.forget_reference();
+  anchor_.forget_reference();
   ref_keyframe_ = -1;
   reloc_cursor_ = 0;
   ba_window_pending_ = ba_global_pending_ = false;

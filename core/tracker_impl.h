@@ -74,6 +74,9 @@ class TrackerImpl {
   void measure_final(PoseEstimate* e);
   bool passes(const PoseEstimate& e, const QualityGates& g) const;
   QualityGates gates(bool strict) const;
+  QualityGates confirm_gates() const;
+  double anchored_share() const;
+  double anchor_agreement_px(const SE3& T_guess, const SE3& T_features);
   TrackResult track(GrayView luma, int frame_index);
   void accept(const PoseEstimate& e, int frame_index, TrackState state, TrackResult* r);
   void fill_measures(const PoseEstimate& e, TrackResult* r) const;
@@ -113,6 +116,7 @@ class TrackerImpl {
   FeatureGrid grid_;
   ImageMotion motion_;  // whole-view shift between frames: rotation prior under fast turns
   DirectAligner aligner_;  // while lost: the camera's motion from the images and the mesh depth
+  DirectAligner anchor_;   // the last frame that passed the normal gates: confirms weak poses
   int align_level_ = 0;    // the ORB pyramid level it works on (about 320 pixels wide)
   PoseSolver solver_;
   PnpRansac ransac_;
@@ -148,6 +152,7 @@ class TrackerImpl {
   int lost_frames_ = 0;
   int strict_frames_left_ = 0;
   int ref_keyframe_ = -1;
+  bool keyframe_anchored_ = true;  // the next add_keyframe's points count as anchored (MapPoint::anchored)
   int reloc_cursor_ = 0;
   SE3 T_last_keyframe_;
 

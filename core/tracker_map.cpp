@@ -33,6 +33,10 @@ TrackResult TrackerImpl::initialise(GrayView luma, int frame_index) {
   lost_ = false;
   T_last_ = T_init_;
   velocity_ = SE3();
+  if (config_.use_image_motion) {  // the registered pose: dead reckoning's and confirmation's first reference
+    aligner_.keep_reference(orb_.pyramid().level(align_level_), valid_view_, T_init_);
+    anchor_.keep_reference(orb_.pyramid().level(align_level_), valid_view_, T_init_);
+  }
   r.state = TrackState::kInitialised;
   r.pose_valid = true;
   r.T_camera_model = T_init_;
@@ -99,6 +103,7 @@ int TrackerImpl::add_keyframe(const SE3& T_camera_model, int frame_index, bool l
     p.ref_octave = static_cast<std::int16_t>(kp.octave);
     p.visible = p.found = 1;
     p.last_seen_frame = p.created_frame = frame_index;
+    p.anchored = keyframe_anchored_;
     const int id = map_.add_point(p, frame_index);
     if (id < 0) break;
     if (!map_.add_link(kf, link_of(k, id))) break;

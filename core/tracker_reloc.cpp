@@ -63,7 +63,13 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   const double agreement_px = solved && measured ? view_difference_px(T_guess, e.T_camera_model) : kUnknownMotion;
   const bool confirmed = agreement_px <= static_cast<double>(config_.search_radius_px);
   bool found = solved && passes(e, confirmed ? gates(false) : strict);
-  const bool found_confirmed = found && confirmed;
+  // A pose only the relaxed gates pass, if direct alignment against the
+  // anchor confirms it (see anchor_agreement_px): measured from a trusted
+  // frame, so no strict frames after it either.
+  if (!found && solved && passes(e, confirm_gates()))
+    found = r.confirmed_by_alignment =
+        anchor_agreement_px(T_guess, e.T_camera_model) <= config_.confirm_agreement_px;
+  const bool found_confirmed = found && (confirmed || r.confirmed_by_alignment);
   // A keyframe's points stay in the map. Such a frame may seed them only
   // if it passes the strict gates, or if the two measurements agree within
   // the refine radius (a weak feature pose that is still several pixels

@@ -208,6 +208,21 @@ bool TrackerImpl::dead_reckon(SE3* T_camera_model) {
   return true;
 }
 
+// A pose that only the relaxed gates pass needs a second, independent
+// measurement: this frame aligned directly (DirectAligner) against the
+// anchor, the last frame whose pose passed the normal gates, starting from
+// T_guess. Measured against the anchor, not chained frame to frame, so a
+// slow drift of the feature poses cannot hide in small steps. Returns how
+// far apart (level-0 px over the organ) the aligned pose and T_features put
+// the organ, or kUnknownMotion if there is no anchor or the alignment fails.
+double TrackerImpl::anchor_agreement_px(const SE3& T_guess, const SE3& T_features) {
+  if (!config_.use_image_motion || !anchor_.has_reference()) return kUnknownMotion;
+  render_at(anchor_.reference_pose());
+  SE3 T = T_guess;
+  if (!anchor_.align(orb_.pyramid().level(align_level_), valid_view_, raster_, camera_, &T)) return kUnknownMotion;
+  return view_difference_px(T, T_features);
+}
+
 // How far apart two poses put the organ in view (level-0 pixels): organ
 // points on a 16 x 9 grid of the current render (raster_, at whatever pose
 // it was made), projected at a and at b; the mean distance
@@ -388,6 +403,25 @@ QualityGates TrackerImpl::gates(bool strict) const {
   return g;
 }
 
+// Of this frame's inliers, the share that are anchored map points.
+double TrackerImpl::anchored_share() const {
+  int n = 0, anchored = 0;
+  for (int i = 0; i < corr_count_; ++i)
+    if (corr_inlier_[static_cast<std::size_t>(i)]) {
+      ++n;
+      anchored += map_.point(corr_point_[static_cast<std::size_t>(i)]).anchored ? 1 : 0;
+    }
+  return n > 0 ? static_cast<double>(anchored) / n : 0.0;
+}
+
+// The normal gates with the inlier ratio's lowered to
+// confirmed_min_inlier_ratio: a pose that direct alignment must confirm.
+QualityGates TrackerImpl::confirm_gates() const {
+  QualityGates g = gates(false);
+  g.min_inlier_ratio = std::min(g.min_inlier_ratio, config_.confirmed_min_inlier_ratio);
+  return g;
+}
+
 bool TrackerImpl::passes(const PoseEstimate& e, const QualityGates& g) const {
   const double ratio = e.matches > 0 ? static_cast<double>(e.inliers) / e.matches : 0.0;
   return e.solved && e.T_camera_model.all_finite() && e.inliers >= g.min_inliers &&
@@ -409,8 +443,13 @@ TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
   if (ok) {
     r.pose_jump_deg = pose_delta(T_predicted, e.T_camera_model).angle_deg;
     r.pose_jump_mm = (camera_centre(T_predicted) - camera_centre(e.T_camera_model)).norm();
-    ok = passes(e, gates(strict_frames_left_ > 0)) && r.pose_jump_deg <= config_.max_jump_deg &&
-         r.pose_jump_mm <= config_.max_jump_mm;
+    const bool plausible = r.pose_jump_deg <= config_.max_jump_deg && r.pose_jump_mm <= config_.max_jump_mm;
+    ok = plausible && passes(e, gates(strict_frames_left_ > 0));
+    if (!ok && plausible && strict_frames_left_ == 0 && passes(e, confirm_gates())) {
+      const double agreement_px = anchor_agreement_px(T_predicted, e.T_camera_model);
+      ok = agreement_px <= config_.confirm_agreement_px;
+      r.confirmed_by_alignment = ok;
+    }
   }
   fill_measures(e, &r);
   if (ok) {
@@ -452,8 +491,11 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
                            : state == TrackState::kRelocalised ? lost_motion_px_
                                                                : 0.0;
   T_last_ = e.T_camera_model;
-  if (config_.use_image_motion)  // where dead reckoning starts if the next frame is lost
-    aligner_.keep_reference(orb_.pyramid().level(align_level_), valid_view_, e.T_camera_model);
+  if (config_.use_image_motion) {  // where dead reckoning starts if the next frame is lost
+    const GrayView small = orb_.pyramid().level(align_level_);
+    aligner_.keep_reference(small, valid_view_, e.T_camera_model);
+    if (!r->confirmed_by_alignment) anchor_.keep_reference(small, valid_view_, e.T_camera_model);
+  }
   last_inliers_ = e.inliers;
   last_depth_mm_ = e.mean_depth_mm;
   lost_ = false;
@@ -467,10 +509,16 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   // to a view the map hardly covers, and without new points the next frames
   // cannot pass) when relocalise() judged its pose fit to (reloc_seed_ok_)
   // and dead reckoning measured it as slow, so not blurred.
-  const bool may_add = state == TrackState::kRelocalised ? reloc_seed_ok_ : strict_frames_left_ == 0;
+  // A confirmed frame (relaxed ratio) may add one only if it stands mostly
+  // on anchored points, and its own points are not anchored.
+  bool may_add = state == TrackState::kRelocalised ? reloc_seed_ok_ : strict_frames_left_ == 0;
+  if (r->confirmed_by_alignment && anchored_share() < config_.confirmed_keyframe_min_anchored) may_add = false;
   if (strict_frames_left_ > 0) --strict_frames_left_;
-  if (may_add && motion_px <= static_cast<double>(config_.keyframe_max_motion_px) && need_keyframe(e))
+  if (may_add && motion_px <= static_cast<double>(config_.keyframe_max_motion_px) && need_keyframe(e)) {
+    keyframe_anchored_ = !r->confirmed_by_alignment;
     r->keyframe = add_keyframe(e.T_camera_model, frame_index, true) >= 0;
+    keyframe_anchored_ = true;
+  }
   lap(Stage::kMap, &t, r);
 }
 

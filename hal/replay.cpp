@@ -37,6 +37,7 @@ FrameRow record_frame(int frame, double timestamp_s, const TrackResult& r, doubl
   stats->lost += r.state == TrackState::kLost ? 1 : 0;
   stats->initialised += r.state == TrackState::kInitialised ? 1 : 0;
   stats->relocalised += r.state == TrackState::kRelocalised ? 1 : 0;
+  stats->confirmed += r.confirmed_by_alignment && row.pose_valid ? 1 : 0;
   return row;
 }
 
@@ -133,6 +134,7 @@ std::string format_replay_summary(const ReplayStats& s, const ReplayOptions& opt
   sum.extra = {{"tracking_thread_allocations", static_cast<double>(s.tracking_thread_allocations)},
                {"initialised_frames", s.initialised},
                {"relocalised_frames", s.relocalised},
+               {"confirmed_frames", s.confirmed},
                {"max_latency_ms", s.max_latency_ms},
                {"wall_time_s", s.wall_s},
                {"realtime", options.realtime ? 1.0 : 0.0},

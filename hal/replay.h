@@ -68,6 +68,7 @@ struct ReplayOptions {
 struct ReplayStats {
   int frames = 0;  // frames processed (rows in frames.csv)
   int tracked = 0, lost = 0, initialised = 0, relocalised = 0;  // tracked: frames with a pose
+  int confirmed = 0;  // reported under the relaxed inlier ratio, confirmed by direct alignment
   double wall_s = 0, fps = 0;
   double mean_latency_ms = 0, p99_latency_ms = 0, max_latency_ms = 0;
   double peak_rss_mb = 0;

@@ -88,6 +88,19 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
     c.dead_reckoning_decay = decay;
     rejects(c, "relocalisation settings");
   }
+  for (double v : {-0.1, 1.5, std::nan("")}) {
+    c = good;
+    c.confirmed_min_inlier_ratio = v;
+    rejects(c, "confirmed_min_inlier_ratio");
+    c = good;
+    c.confirmed_keyframe_min_anchored = v;
+    rejects(c, "confirmed_keyframe_min_anchored");
+  }
+  for (double v : {-1.0, 1e6, std::nan("")}) {
+    c = good;
+    c.confirm_agreement_px = v;
+    rejects(c, "confirm_agreement_px");
+  }
   Pinhole bad = seq.K;
   bad.fx = -1;
   CHECK_FALSE(t.configure(good, seq.mesh, CameraModel(bad, Distortion{}), seq.T_camera_model[0]).ok());
