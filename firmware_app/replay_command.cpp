@@ -25,8 +25,9 @@ struct ReplayArgs {
   std::string sequence, out;
   bool realtime = false;
   bool use_mask = true;
-  bool use_image_motion = true;  // --no-image-motion: constant-velocity prediction only, and no
-                                 // dead reckoning by direct alignment while lost (ablation)
+  bool use_image_motion = true;  // --no-image-motion: constant-velocity prediction only, no
+                                 // dead reckoning by direct alignment while lost, no confirmed
+                                 // poses (ablation)
   bool use_ba = true;       // --no-ba: no bundle adjustment (tracking and mesh-depth points only)
   bool shape_ba = true;     // --no-shape-ba: BA with w_shape = 0
   int ring_slots = 6;
