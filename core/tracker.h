@@ -59,16 +59,18 @@ struct TrackerConfig {
   // are inliers while its markers are 1 px from the truth), so a right pose
   // fails min_inlier_ratio. A pose that passes every gate but that one,
   // down to confirmed_min_inlier_ratio, is reported if direct alignment of
-  // the frame against the last frame that passed the normal gates (the
-  // anchor) puts the organ within confirm_agreement_px of it (mean over the
-  // organ, level-0 px): two independent measurements agree. Such a frame
-  // never becomes the anchor, and it adds a keyframe only if at least
+  // the frame against the last frame that passed the normal gates with an
+  // inlier ratio of at least anchor_min_inlier_ratio (the anchor) puts the
+  // organ within confirm_agreement_px of it (mean over the organ, level-0
+  // px): two independent measurements agree. Such a frame never becomes
+  // the anchor, and it adds a keyframe only if at least
   // confirmed_keyframe_min_anchored of its inliers are anchored points
   // (made by keyframes of normal-gate frames): a slow drift cannot extend
   // the map on its own. Needs use_image_motion; confirmed_min_inlier_ratio
   // >= min_inlier_ratio turns it off.
   double confirmed_min_inlier_ratio = 0.2;
   double confirm_agreement_px = 3.0;
+  double anchor_min_inlier_ratio = 0.4;
   double confirmed_keyframe_min_anchored = 0.5;
   // Search by projection (full-resolution pixels, scaled by the predicted octave's scale).
   float search_radius_px = 15.f;   // around the constant-velocity prediction

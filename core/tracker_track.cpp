@@ -210,7 +210,8 @@ bool TrackerImpl::dead_reckon(SE3* T_camera_model) {
 
 // A pose that only the relaxed gates pass needs a second, independent
 // measurement: this frame aligned directly (DirectAligner) against the
-// anchor, the last frame whose pose passed the normal gates, starting from
+// anchor, the last frame whose pose passed the normal gates with margin
+// (anchor_min_inlier_ratio), starting from
 // T_guess. Measured against the anchor, not chained frame to frame, so a
 // slow drift of the feature poses cannot hide in small steps. Returns how
 // far apart (level-0 px over the organ) the aligned pose and T_features put
@@ -494,7 +495,11 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   if (config_.use_image_motion) {  // where dead reckoning starts if the next frame is lost
     const GrayView small = orb_.pyramid().level(align_level_);
     aligner_.keep_reference(small, valid_view_, e.T_camera_model);
-    if (!r->confirmed_by_alignment) anchor_.keep_reference(small, valid_view_, e.T_camera_model);
+    // The anchor that confirms weak poses must itself be clearly good: not
+    // confirmed, and with margin over the ratio gate.
+    const double ratio = e.matches > 0 ? static_cast<double>(e.inliers) / e.matches : 0.0;
+    if (!r->confirmed_by_alignment && ratio >= config_.anchor_min_inlier_ratio)
+      anchor_.keep_reference(small, valid_view_, e.T_camera_model);
   }
   last_inliers_ = e.inliers;
   last_depth_mm_ = e.mean_depth_mm;

@@ -15,6 +15,7 @@
 #include "core/rasterizer.h"
 #include "core/valid_mask.h"
 #include "support/alloc_guard.h"
+#include "support/pose_scene.h"
 #include "tools/sim/renderer.h"
 #include "tools/sim/sim_run.h"
 
@@ -106,20 +107,10 @@ struct Frames {
   // Mean image distance (pixels) between where organ vertices project at T
   // and at the truth, over vertices in front of the camera inside the image.
   double reprojection_px(const SE3& T, const SE3& truth) const {
-    const Pinhole& K = setup.render.K;
-    const Mesh& organ = setup.scene.organ;
-    double sum = 0;
     int n = 0;
-    for (int i = 0; i < organ.vertex_count(); i += 5) {
-      const Vec3 pt = truth * organ.vertex(i), pe = T * organ.vertex(i);
-      if (pt.z() < 1.0 || pe.z() < 1.0) continue;
-      const Vec2 a = K.project(pt);
-      if (!K.in_image(a)) continue;
-      sum += (K.project(pe) - a).norm();
-      ++n;
-    }
+    const double px = test::vertex_reprojection_px(setup.scene.organ, setup.render.K, T, truth, 5, &n);
     REQUIRE(n > 100);
-    return sum / n;
+    return px;
   }
 };
 

@@ -78,29 +78,23 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
   c = good;
   c.local_map_per_cell = 9;
   rejects(c, "local_map_per_cell");
-  for (float motion : {0.f, -1.f, std::nanf("")}) {
-    c = good;
-    c.keyframe_max_motion_px = motion;
-    rejects(c, "keyframe_max_motion_px");
-  }
-  for (double decay : {0.0, 1.5, std::nan("")}) {
-    c = good;
-    c.dead_reckoning_decay = decay;
-    rejects(c, "relocalisation settings");
-  }
+  // One field set to a bad value, the rest good: refused, naming the field.
+  auto rejects_value = [&](auto TrackerConfig::*field, auto value, const char* what) {
+    TrackerConfig bad_one = good;
+    bad_one.*field = value;
+    rejects(bad_one, what);
+  };
+  for (float motion : {0.f, -1.f, std::nanf("")})
+    rejects_value(&TrackerConfig::keyframe_max_motion_px, motion, "keyframe_max_motion_px");
+  for (double decay : {0.0, 1.5, std::nan("")})
+    rejects_value(&TrackerConfig::dead_reckoning_decay, decay, "relocalisation settings");
   for (double v : {-0.1, 1.5, std::nan("")}) {
-    c = good;
-    c.confirmed_min_inlier_ratio = v;
-    rejects(c, "confirmed_min_inlier_ratio");
-    c = good;
-    c.confirmed_keyframe_min_anchored = v;
-    rejects(c, "confirmed_keyframe_min_anchored");
+    rejects_value(&TrackerConfig::confirmed_min_inlier_ratio, v, "confirmed_min_inlier_ratio");
+    rejects_value(&TrackerConfig::confirmed_keyframe_min_anchored, v, "confirmed_keyframe_min_anchored");
+    rejects_value(&TrackerConfig::anchor_min_inlier_ratio, v, "anchor_min_inlier_ratio");
   }
-  for (double v : {-1.0, 1e6, std::nan("")}) {
-    c = good;
-    c.confirm_agreement_px = v;
-    rejects(c, "confirm_agreement_px");
-  }
+  for (double v : {-1.0, 1e6, std::nan("")})
+    rejects_value(&TrackerConfig::confirm_agreement_px, v, "confirm_agreement_px");
   Pinhole bad = seq.K;
   bad.fx = -1;
   CHECK_FALSE(t.configure(good, seq.mesh, CameraModel(bad, Distortion{}), seq.T_camera_model[0]).ok());

@@ -137,4 +137,20 @@ SE3 perturb(const SE3& T, double rotation_deg, double translation_mm, std::uint3
   return SE3::exp(xi) * T;
 }
 
+double vertex_reprojection_px(const Mesh& mesh, const Pinhole& K, const SE3& T, const SE3& truth, int stride,
+                              int* count) {
+  double sum = 0;
+  int n = 0;
+  for (int i = 0; i < mesh.vertex_count(); i += stride) {
+    const Vec3 pt = truth * mesh.vertex(i), pe = T * mesh.vertex(i);
+    if (pt.z() < 1.0 || pe.z() < 1.0) continue;
+    const Vec2 a = K.project(pt);
+    if (!K.in_image(a)) continue;
+    sum += (K.project(pe) - a).norm();
+    ++n;
+  }
+  if (count) *count = n;
+  return n > 0 ? sum / n : 0.0;
+}
+
 }  // namespace st::test

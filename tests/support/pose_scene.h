@@ -10,6 +10,7 @@
 
 #include "core/camera.h"
 #include "core/correspondences.h"
+#include "core/mesh.h"
 #include "core/se3.h"
 
 namespace st::test {
@@ -61,5 +62,12 @@ inline double camera_centre_distance_mm(const SE3& a, const SE3& b) {
 // A pose perturbed by rotation_deg about a random axis and translation_mm
 // in a random direction (a constant-velocity prediction error).
 SE3 perturb(const SE3& T, double rotation_deg, double translation_mm, std::uint32_t seed);
+
+// Mean image distance (px) between where every stride-th vertex of mesh
+// projects at T and at truth (both T_camera_model), over the vertices in
+// front of both cameras that the truth puts inside the image; their number
+// into *count if not null (0: the result is meaningless).
+double vertex_reprojection_px(const Mesh& mesh, const Pinhole& K, const SE3& T, const SE3& truth, int stride,
+                              int* count = nullptr);
 
 }  // namespace st::test
