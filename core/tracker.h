@@ -108,6 +108,13 @@ struct TrackerConfig {
   int ba_global_max_iterations = 15;
   double ba_global_max_time_s = 0.2;
   int ba_max_observations = 40000;      // observations per job (the job buffer's capacity)
+  // 0 (live): a solved job is applied at the first frame that finds it
+  // solved, so where corrections land depends on the machine's speed. N > 0
+  // (deterministic replays and tests): a job is applied exactly N frames
+  // after it was handed over, the tracking thread waiting for the solve if
+  // it must, and solves stop by iteration count, not time. Read by the
+  // mapping side (firmware_app/mapping_worker.h).
+  int ba_lag_frames = 0;
   // Clock for stage timings (monotonic ns); nullptr: no timings.
   std::int64_t (*now_ns)() = nullptr;
 };

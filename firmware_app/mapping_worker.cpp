@@ -1,10 +1,16 @@
 #include "firmware_app/mapping_worker.h"
 
+#include <chrono>
+
 #include "platform/alloc_counter.h"
 #include "platform/clock.h"
 #include "platform/realtime.h"
 
 namespace st::app {
+
+namespace {
+constexpr double kUnboundedSolveS = 1e6;  // a Ceres time limit that never binds
+}  // namespace
 
 Status MappingWorker::configure(const TrackerConfig& config, const Mesh& mesh, const Pinhole& K) {
   stop();
@@ -14,6 +20,10 @@ Status MappingWorker::configure(const TrackerConfig& config, const Mesh& mesh, c
   o.w_shape = config.w_shape;
   o.max_iterations = config.ba_max_iterations;
   o.max_time_s = config.ba_max_time_s;
+  if (config.ba_lag_frames > 0) {  // deterministic: iterations only (the solves' time limits vary with the machine)
+    o.max_time_s = kUnboundedSolveS;
+    config_.ba_global_max_time_s = kUnboundedSolveS;
+  }
   if (Status s = job_.configure(config.max_keyframes, config.max_map_points, config.ba_max_observations); !s.ok())
     return make_error("mapping: " + s.message());
   if (Status s = adjuster_.configure(o, mesh, K, config.max_map_points, config.ba_max_observations); !s.ok())
@@ -44,6 +54,7 @@ BaJob* MappingWorker::acquire_job() {
 
 void MappingWorker::submit_job(BaJob* job) {
   if (job != &job_) return;
+  frames_out_ = 0;
   state_.store(kQueued, std::memory_order_release);
   // Capacity 2 and one job buffer: never full here (the stop marker comes
   // only from stop(), on this same thread).
@@ -51,7 +62,10 @@ void MappingWorker::submit_job(BaJob* job) {
 }
 
 const BaJob* MappingWorker::solved_job() {
-  return state_.load(std::memory_order_acquire) == kSolved ? &job_ : nullptr;
+  if (config_.ba_lag_frames <= 0) return state_.load(std::memory_order_acquire) == kSolved ? &job_ : nullptr;
+  if (state_.load(std::memory_order_acquire) == kFree || ++frames_out_ < config_.ba_lag_frames) return nullptr;
+  while (state_.load(std::memory_order_acquire) != kSolved) std::this_thread::sleep_for(std::chrono::microseconds(50));
+  return &job_;
 }
 
 void MappingWorker::release_job(const BaJob* job) {

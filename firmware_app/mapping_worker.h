@@ -4,7 +4,11 @@
 // job slots (platform/spsc_queue.h): while the buffer is away the tracker
 // gets nullptr from acquire_job() and defers its job; the solved job comes
 // back through an atomic state the tracker reads at the start of a frame
-// (no lock, nothing held across a frame).
+// (no lock, nothing held across a frame). With TrackerConfig::ba_lag_frames
+// N > 0 (deterministic replays) the job comes back exactly N frames after
+// it was handed over: solved_job() then waits for the solve, the one
+// place the tracking thread may block, and solves are bounded by iterations
+// only.
 //
 // Threads: configure() on the owner (allocates the job buffer, the BA
 // pools and the closest-point index); start()/stop() on the tracking
@@ -71,6 +75,7 @@ class MappingWorker final : public BaChannel {
   BundleAdjuster adjuster_;
   BaJob job_;
   std::atomic<int> state_{kFree};
+  int frames_out_ = 0;  // solved_job() calls since the job was handed over (ba_lag_frames)
   platform::SpscQueue<std::int32_t, 2> queue_;  // job slot, or -1: stop
   std::thread thread_;
   bool configured_ = false;

@@ -1,4 +1,4 @@
-// scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba] [--no-shape-ba]
+// scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
 //   [--ring N]:
 // replays a sequence through the tracker (hal/replay.h) into the output
 // folder. Exit status: 0 done, 1 the sequence or the replay failed (a clear
@@ -10,6 +10,7 @@
 #include <string>
 #include <unistd.h>
 
+#include "core/text_scan.h"
 #include "firmware_app/cli.h"
 #include "firmware_app/stream_link.h"
 #include "firmware_app/tracker_processor.h"
@@ -30,11 +31,20 @@ struct ReplayArgs {
                                  // poses (ablation)
   bool use_ba = true;       // --no-ba: no bundle adjustment (tracking and mesh-depth points only)
   bool shape_ba = true;     // --no-shape-ba: BA with w_shape = 0
+  int ba_lag = 0;           // --ba-lag N: deterministic BA hand-back (TrackerConfig::ba_lag_frames)
   int ring_slots = 6;
   std::string stream;           // --stream ENDPOINT: serve consoles (firmware_app/stream_link.h)
   int stream_wait = 0;          // --stream-wait N: start once N consoles are connected
   int texture_every = 0;        // --texture-every K: 0 keyframes, k every k-th frame with a pose
 };
+
+// A whole number in [lo, hi] (st::parse_int64: the whole token, no sign games).
+bool parse_int_in(const char* s, long long lo, long long hi, int* out) {
+  long long v = 0;
+  if (!st::parse_int64(s, &v) || v < lo || v > hi) return false;
+  *out = static_cast<int>(v);
+  return true;
+}
 
 // args: DIR then options. False (with a message) on anything it does not understand.
 bool parse_args(Args args, ReplayArgs* a) {
@@ -55,6 +65,11 @@ bool parse_args(Args args, ReplayArgs* a) {
       a->use_ba = false;
     } else if (!std::strcmp(arg, "--no-shape-ba")) {
       a->shape_ba = false;
+    } else if (!std::strcmp(arg, "--ba-lag") && has_value) {
+      if (!parse_int_in(args[static_cast<std::size_t>(++i)], 1, 1000, &a->ba_lag)) {
+        std::fprintf(stderr, "scopetrack: --ba-lag takes a whole number of frames in 1..1000\n");
+        return false;
+      }
     } else if (!std::strcmp(arg, "--ring") && has_value) {
       a->ring_slots = std::atoi(args[static_cast<std::size_t>(++i)]);
     } else if (!std::strcmp(arg, "--stream") && has_value) {
@@ -83,6 +98,7 @@ TrackerConfig tracker_config(const LoadedSequence& seq, const ReplayArgs& a) {
   c.use_ba = a.use_ba;
   c.use_image_motion = a.use_image_motion;
   if (!a.shape_ba) c.w_shape = 0.0;
+  c.ba_lag_frames = a.ba_lag;
   c.now_ns = &platform::monotonic_ns;
   return c;
 }
@@ -124,7 +140,7 @@ int run_replay(Args argv) {
   ReplayArgs args;
   if (!parse_args(argv, &args)) {
     std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba]"
-                 " [--no-shape-ba]"
+                 " [--no-shape-ba] [--ba-lag N]"
                  " [--ring N]\n"
                  "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
     return 2;
@@ -161,8 +177,8 @@ int run_replay(Args argv) {
   opt.ring_slots = args.ring_slots;
   opt.summary_extra = {{"use_mask", args.use_mask ? 1.0 : 0.0}, {"use_ba", args.use_ba ? 1.0 : 0.0},
                        {"use_image_motion", args.use_image_motion ? 1.0 : 0.0},
-                       {"w_shape", args.shape_ba ? TrackerConfig{}.w_shape : 0.0}, {"width", c.width},
-                       {"height", c.height}};
+                       {"w_shape", args.shape_ba ? TrackerConfig{}.w_shape : 0.0},
+                       {"ba_lag_frames", args.ba_lag}, {"width", c.width}, {"height", c.height}};
   auto stats = run_replay(seq.value(), *processor, opt);
   if (!stats) {
     std::fprintf(stderr, "scopetrack: %s\n", stats.message().c_str());

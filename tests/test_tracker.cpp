@@ -95,6 +95,7 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
   }
   for (double v : {-1.0, 1e6, std::nan("")})
     rejects_value(&TrackerConfig::confirm_agreement_px, v, "confirm_agreement_px");
+  for (int v : {-1, 1001}) rejects_value(&TrackerConfig::ba_lag_frames, v, "ba_lag_frames");
   Pinhole bad = seq.K;
   bad.fx = -1;
   CHECK_FALSE(t.configure(good, seq.mesh, CameraModel(bad, Distortion{}), seq.T_camera_model[0]).ok());
