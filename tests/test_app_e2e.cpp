@@ -55,7 +55,7 @@ EvalReport simulate_track_evaluate(const std::filesystem::path& dir, int frames,
 
 // Where the mapping thread's corrections land decided whether fast seed 2
 // at 960x540 recovered: live, the same binary lost 2.0-4.3 % on a quiet or
-// loaded machine (TRE p95 3.5 px, or 8 px in 4 of 8 loaded runs, after a
+// loaded machine (TRE p95 3.5 px, or 8 px in 5 of 12 loaded runs, after a
 // relocalisation that seeded a keyframe 8 px off), and 69 % in one of four
 // ASan runs, as with --no-ba. With the corrections landing 3 frames after
 // their job, runs are byte-identical whatever the load.
