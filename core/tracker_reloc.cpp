@@ -7,8 +7,10 @@
 // the same projection tracking at the found pose. Every candidate must pass
 // the strict gates (more inliers, spread, mask agreement), except a pose
 // the measured dead reckoning predicted within the tracking search radius:
-// it passes the normal gates, as a tracked frame would. Tracking thread;
-// allocates nothing.
+// it passes the normal gates, as a tracked frame would; and a pose that
+// fails only the inlier ratio, down to confirmed_min_inlier_ratio, if
+// direct alignment against the anchor confirms it (TrackerConfig,
+// confirmed poses). Tracking thread; allocates nothing.
 #include <algorithm>
 #include <cmath>
 

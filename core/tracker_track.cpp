@@ -211,11 +211,11 @@ bool TrackerImpl::dead_reckon(SE3* T_camera_model) {
 // A pose that only the relaxed gates pass needs a second, independent
 // measurement: this frame aligned directly (DirectAligner) against the
 // anchor, the last frame whose pose passed the normal gates with margin
-// (anchor_min_inlier_ratio), starting from
-// T_guess. Measured against the anchor, not chained frame to frame, so a
-// slow drift of the feature poses cannot hide in small steps. Returns how
-// far apart (level-0 px over the organ) the aligned pose and T_features put
-// the organ, or kUnknownMotion if there is no anchor or the alignment fails.
+// (anchor_min_inlier_ratio), starting from T_guess. Measured against the
+// anchor, not chained frame to frame, so a slow drift of the feature poses
+// cannot hide in small steps. Returns how far apart (level-0 px over the
+// organ) the aligned pose and T_features put the organ, or kUnknownMotion
+// if there is no anchor or the alignment fails.
 double TrackerImpl::anchor_agreement_px(const SE3& T_guess, const SE3& T_features) {
   if (!config_.use_image_motion || !anchor_.has_reference()) return kUnknownMotion;
   render_at(anchor_.reference_pose());
