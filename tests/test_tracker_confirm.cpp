@@ -94,11 +94,12 @@ Outcome track(const SmoothInvivo& seq, bool confirm) {
       CHECK_FALSE(r.confirmed_by_alignment);
       continue;
     }
+    const double error = seq.error_px(r.T_camera_model, f);
+    o.worst_px = std::max(o.worst_px, error);
     // Normal-gate frames before the first confirmed one are left out: they
     // are the easy start near the registered pose.
-    if (r.confirmed_by_alignment) o.confirmed_px.push_back(seq.error_px(r.T_camera_model, f));
-    else if (f > 0 && !o.confirmed_px.empty()) o.normal_px.push_back(seq.error_px(r.T_camera_model, f));
-    o.worst_px = std::max(o.worst_px, seq.error_px(r.T_camera_model, f));
+    if (r.confirmed_by_alignment) o.confirmed_px.push_back(error);
+    else if (f > 0 && !o.confirmed_px.empty()) o.normal_px.push_back(error);
   }
   t.stop();
   return o;
@@ -119,8 +120,9 @@ TEST_CASE("tracker: direct alignment confirms the right poses that smooth, noisy
   const Outcome with = track(seq, true);
   const Outcome without = track(seq, false);
   MESSAGE("confirmation on: lost " << with.lost << ", confirmed " << with.confirmed_px.size() << " (error median "
-                                   << median(with.confirmed_px) << " px), normal gates after the first confirmed " << with.normal_px.size()
-                                   << " (median " << median(with.normal_px) << " px), worst " << with.worst_px << " px");
+                                   << median(with.confirmed_px) << " px), normal gates after the first confirmed "
+                                   << with.normal_px.size() << " (median " << median(with.normal_px)
+                                   << " px), worst " << with.worst_px << " px");
   MESSAGE("confirmation off: lost " << without.lost << ", worst " << without.worst_px << " px");
   CHECK(without.confirmed_px.empty());
   CHECK(with.confirmed_px.size() >= 15);
