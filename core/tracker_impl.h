@@ -45,6 +45,7 @@ struct PoseEstimate {
   double whitened_rms = 0;  // sqrt(mean(info * |r|^2)) over the inliers: level-0 pixels
   int spread_cells = 0;
   double mean_depth_mm = 100.0;  // of the inliers at the final pose
+  double inlier_ratio() const { return matches > 0 ? static_cast<double>(inliers) / matches : 0.0; }
 };
 
 class TrackerImpl {
@@ -83,7 +84,7 @@ class TrackerImpl {
   // Map (tracker_map.cpp).
   TrackResult initialise(GrayView luma, int frame_index);
   bool surface_point(const Vec2& px_ideal, Vec3* p_model) const;
-  int add_keyframe(const SE3& T_camera_model, int frame_index, bool link_inliers);
+  int add_keyframe(const SE3& T_camera_model, int frame_index, bool link_inliers, bool anchored = true);
   bool need_keyframe(const PoseEstimate& e);
   void update_counters(int frame_index);
   // Relocalisation (tracker_reloc.cpp).
@@ -152,7 +153,6 @@ class TrackerImpl {
   int lost_frames_ = 0;
   int strict_frames_left_ = 0;
   int ref_keyframe_ = -1;
-  bool keyframe_anchored_ = true;  // the next add_keyframe's points count as anchored (MapPoint::anchored)
   int reloc_cursor_ = 0;
   SE3 T_last_keyframe_;
 

@@ -66,8 +66,9 @@ bool TrackerImpl::surface_point(const Vec2& px_ideal, Vec3* p_model) const {
 
 // Inserts a keyframe at T_camera_model: links to this frame's inliers (when
 // tracking) and new map points, from the mesh depth at exactly this pose,
-// for the keypoints that matched nothing. Returns the keyframe id or -1.
-int TrackerImpl::add_keyframe(const SE3& T_camera_model, int frame_index, bool link_inliers) {
+// for the keypoints that matched nothing, marked anchored or not
+// (MapPoint::anchored). Returns the keyframe id or -1.
+int TrackerImpl::add_keyframe(const SE3& T_camera_model, int frame_index, bool link_inliers, bool anchored) {
   const int kf = map_.add_keyframe(T_camera_model, frame_index, ref_keyframe_);
   if (kf < 0) return -1;
   if (!raster_valid_ || !same_pose(raster_pose_, T_camera_model)) render_at(T_camera_model);
@@ -103,7 +104,7 @@ int TrackerImpl::add_keyframe(const SE3& T_camera_model, int frame_index, bool l
     p.ref_octave = static_cast<std::int16_t>(kp.octave);
     p.visible = p.found = 1;
     p.last_seen_frame = p.created_frame = frame_index;
-    p.anchored = keyframe_anchored_;
+    p.anchored = anchored;
     const int id = map_.add_point(p, frame_index);
     if (id < 0) break;
     if (!map_.add_link(kf, link_of(k, id))) break;

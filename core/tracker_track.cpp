@@ -291,8 +291,7 @@ SE3 TrackerImpl::motion_prior(GrayView luma, const SE3& T_reference, const SE3& 
 // prediction allows (a sudden turn), so the search must go wider.
 bool TrackerImpl::weak_first_pass(bool solved, const PoseEstimate& e) const {
   if (!solved) return true;
-  const double ratio = e.matches > 0 ? static_cast<double>(e.inliers) / e.matches : 0.0;
-  return ratio < 0.75 || 2 * e.inliers < last_inliers_;
+  return e.inlier_ratio() < 0.75 || 2 * e.inliers < last_inliers_;
 }
 
 // Pose from the features already extracted, starting at T_predicted (the
@@ -424,9 +423,8 @@ QualityGates TrackerImpl::confirm_gates() const {
 }
 
 bool TrackerImpl::passes(const PoseEstimate& e, const QualityGates& g) const {
-  const double ratio = e.matches > 0 ? static_cast<double>(e.inliers) / e.matches : 0.0;
   return e.solved && e.T_camera_model.all_finite() && e.inliers >= g.min_inliers &&
-         ratio >= g.min_inlier_ratio && e.whitened_rms <= g.max_rms_px &&
+         e.inlier_ratio() >= g.min_inlier_ratio && e.whitened_rms <= g.max_rms_px &&
          e.mask_agreement >= g.min_mask_agreement && e.spread_cells >= g.min_spread_cells;
 }
 
@@ -472,7 +470,7 @@ TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
 void TrackerImpl::fill_measures(const PoseEstimate& e, TrackResult* r) const {
   r->matches = e.matches;
   r->inliers = e.inliers;
-  r->inlier_ratio = e.matches > 0 ? static_cast<double>(e.inliers) / e.matches : 0.0;
+  r->inlier_ratio = e.inlier_ratio();
   r->rms_px = e.rms_px;
   r->whitened_rms_px = e.whitened_rms;
   r->mask_agreement = e.mask_agreement;
@@ -497,8 +495,7 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
     aligner_.keep_reference(small, valid_view_, e.T_camera_model);
     // The anchor that confirms weak poses must itself be clearly good: not
     // confirmed, and with margin over the ratio gate.
-    const double ratio = e.matches > 0 ? static_cast<double>(e.inliers) / e.matches : 0.0;
-    if (!r->confirmed_by_alignment && ratio >= config_.anchor_min_inlier_ratio)
+    if (!r->confirmed_by_alignment && e.inlier_ratio() >= config_.anchor_min_inlier_ratio)
       anchor_.keep_reference(small, valid_view_, e.T_camera_model);
   }
   last_inliers_ = e.inliers;
@@ -519,11 +516,8 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   bool may_add = state == TrackState::kRelocalised ? reloc_seed_ok_ : strict_frames_left_ == 0;
   if (r->confirmed_by_alignment && anchored_share() < config_.confirmed_keyframe_min_anchored) may_add = false;
   if (strict_frames_left_ > 0) --strict_frames_left_;
-  if (may_add && motion_px <= static_cast<double>(config_.keyframe_max_motion_px) && need_keyframe(e)) {
-    keyframe_anchored_ = !r->confirmed_by_alignment;
-    r->keyframe = add_keyframe(e.T_camera_model, frame_index, true) >= 0;
-    keyframe_anchored_ = true;
-  }
+  if (may_add && motion_px <= static_cast<double>(config_.keyframe_max_motion_px) && need_keyframe(e))
+    r->keyframe = add_keyframe(e.T_camera_model, frame_index, true, !r->confirmed_by_alignment) >= 0;
   lap(Stage::kMap, &t, r);
 }
 
