@@ -67,6 +67,21 @@ inline bool parse_int64(std::string_view tok, long long* out) {
   return ec == std::errc() && end == tok.data() + tok.size();
 }
 
+// The same, and within [lo, hi] (command-line values; NaN fails the range).
+inline bool parse_int64_in(std::string_view tok, long long lo, long long hi, long long* out) {
+  long long v = 0;
+  if (!parse_int64(tok, &v) || v < lo || v > hi) return false;
+  *out = v;
+  return true;
+}
+
+inline bool parse_double_in(std::string_view tok, double lo, double hi, double* out) {
+  double v = 0;
+  if (!parse_double(tok, &v) || !(v >= lo && v <= hi)) return false;
+  *out = v;
+  return true;
+}
+
 // A short, printable excerpt of untrusted bytes for an error message.
 inline std::string quote_bytes(std::string_view s, std::size_t max_chars = 40) {
   std::string out = "'";

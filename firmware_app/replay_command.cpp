@@ -38,14 +38,6 @@ struct ReplayArgs {
   int texture_every = 0;        // --texture-every K: 0 keyframes, k every k-th frame with a pose
 };
 
-// A whole number in [lo, hi] (st::parse_int64: the whole token, no sign games).
-bool parse_int_in(const char* s, long long lo, long long hi, int* out) {
-  long long v = 0;
-  if (!st::parse_int64(s, &v) || v < lo || v > hi) return false;
-  *out = static_cast<int>(v);
-  return true;
-}
-
 // args: DIR then options. False (with a message) on anything it does not understand.
 bool parse_args(Args args, ReplayArgs* a) {
   const int argc = static_cast<int>(args.size());
@@ -66,10 +58,12 @@ bool parse_args(Args args, ReplayArgs* a) {
     } else if (!std::strcmp(arg, "--no-shape-ba")) {
       a->shape_ba = false;
     } else if (!std::strcmp(arg, "--ba-lag") && has_value) {
-      if (!parse_int_in(args[static_cast<std::size_t>(++i)], 1, 1000, &a->ba_lag)) {
+      long long lag = 0;
+      if (!st::parse_int64_in(args[static_cast<std::size_t>(++i)], 1, 1000, &lag)) {
         std::fprintf(stderr, "scopetrack: --ba-lag takes a whole number of frames in 1..1000\n");
         return false;
       }
+      a->ba_lag = static_cast<int>(lag);
     } else if (!std::strcmp(arg, "--ring") && has_value) {
       a->ring_slots = std::atoi(args[static_cast<std::size_t>(++i)]);
     } else if (!std::strcmp(arg, "--stream") && has_value) {

@@ -22,24 +22,6 @@ void usage() {
                "                      [--shutter F (0.5 of the frame interval; 0 = no motion blur)]\n");
 }
 
-bool parse_int(std::string_view s, long long lo, long long hi, long long* out) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  const std::string str(s);
-  const long long v = std::strtoll(str.c_str(), &end, 10);
-  if (*end != '\0' || v < lo || v > hi) return false;
-  *out = v;
-  return true;
-}
-
-// A number in [lo, hi] (st::parse_double: locale-free; NaN fails the range).
-bool parse_real(std::string_view s, double lo, double hi, double* out) {
-  double v = 0;
-  if (!st::parse_double(s, &v) || !(v >= lo && v <= hi)) return false;
-  *out = v;
-  return true;
-}
-
 // Returns an error message, or empty when all arguments were understood.
 std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
   bool have_scenario = false;
@@ -56,26 +38,26 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
     } else if (a == "--out") {
       o->out_dir = std::string(v);
     } else if (a == "--frames") {
-      if (!parse_int(v, 1, 1'000'000, &n)) return "--frames wants an integer in 1..1000000";
+      if (!st::parse_int64_in(v, 1, 1'000'000, &n)) return "--frames wants an integer in 1..1000000";
       o->frames = static_cast<int>(n);
     } else if (a == "--size") {
       const auto x = v.find('x');
       long long w = 0, h = 0;
-      if (x == std::string_view::npos || !parse_int(v.substr(0, x), 16, 4096, &w) ||
-          !parse_int(v.substr(x + 1), 16, 4096, &h))
+      if (x == std::string_view::npos || !st::parse_int64_in(v.substr(0, x), 16, 4096, &w) ||
+          !st::parse_int64_in(v.substr(x + 1), 16, 4096, &h))
         return "--size wants WxH, e.g. 1280x720";
       o->width = static_cast<int>(w);
       o->height = static_cast<int>(h);
     } else if (a == "--seed") {
-      if (!parse_int(v, 0, (1ll << 62), &n)) return "--seed wants a non-negative integer";
+      if (!st::parse_int64_in(v, 0, (1ll << 62), &n)) return "--seed wants a non-negative integer";
       o->seed = static_cast<std::uint64_t>(n);
     } else if (a == "--mesh") {
       o->mesh_file = std::string(v);
     } else if (a == "--organ-detail") {
-      if (!parse_real(v, 0.0, st::sim::kMaxOrganDetail, &o->organ_detail))
+      if (!st::parse_double_in(v, 0.0, st::sim::kMaxOrganDetail, &o->organ_detail))
         return "--organ-detail wants a number in 0..2 (1: the calibrated tissue texture)";
     } else if (a == "--shutter") {
-      if (!parse_real(v, 0.0, 1.0, &o->shutter))
+      if (!st::parse_double_in(v, 0.0, 1.0, &o->shutter))
         return "--shutter wants the open fraction of the frame interval, 0..1 (0: no motion blur)";
     } else if (a == "--field-stop") {
       if (v != "on" && v != "off") return "--field-stop wants on or off";
