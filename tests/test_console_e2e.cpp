@@ -194,7 +194,7 @@ TEST_CASE(
 
 TEST_CASE(
     "console_e2e: a console that connects and never reads does not slow tracking or grow memory" *
-    doctest::timeout(test::budget_s(300))) {
+    doctest::timeout(test::budget_s(300)) * doctest::test_suite("serial")) {
   const auto dir = test::scratch_dir("console_slow");
   REQUIRE(run(bin("scopetrack-sim") +
               " --scenario orbit --frames 100 --size 480x270 --seed 3 --out " + q(dir / "seq") +

@@ -20,4 +20,5 @@ if command -v ccache >/dev/null; then opts+=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccach
 
 cmake -S . -B "$build" "${opts[@]}"
 cmake --build "$build" -j"$(nproc)"
-ctest --test-dir "$build" --output-on-failure -j1
+# Parallel on every core; tests listed in tests/serial_tests.cmake run alone.
+ctest --test-dir "$build" --output-on-failure -j"$(nproc)"
