@@ -18,7 +18,7 @@ constexpr int kMaxIterations = 15;
 // A level has converged when a step moves the points by less than this
 // many of its pixels (the motion, not the parameters: 1e-6 on the twist,
 // the earlier test, took ~40 iterations over the levels where ~20 give the
-// same pose to 0.001 px on the fast swing's frames).
+// same poses within 0.005 px on the fast swing's frames).
 constexpr double kConvergedPx = 0.01;
 constexpr double kHuber = 1.345;     // in robust sigmas
 constexpr double kOutCostSigmas = 3; // a point that left the image costs like a 3-sigma residual

@@ -20,5 +20,5 @@ if command -v ccache >/dev/null; then opts+=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccach
 
 cmake -S . -B "$build" "${opts[@]}"
 cmake --build "$build" -j"$(nproc)"
-# Parallel on every core; tests listed in tests/serial_tests.cmake run alone.
+# Parallel on every core; the doctest suite "serial" runs alone (tests/CMakeLists.txt).
 ctest --test-dir "$build" --output-on-failure -j"$(nproc)"
