@@ -36,6 +36,60 @@ int hamming256_portable(const std::uint8_t* a, const std::uint8_t* b) {
   return d;
 }
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define ST_POPCNT_DISPATCH 1
+namespace {
+inline std::uint64_t word(const std::uint8_t* p, int i) {
+  std::uint64_t w;
+  std::memcpy(&w, p + 8 * i, sizeof w);
+  return w;
+}
+
+// Four 64-bit words, one POPCNT each (compiled for POPCNT whatever the
+// board's flags; only reached where the CPU has it).
+__attribute__((target("popcnt"))) inline int popcnt256(const std::uint8_t* a, const std::uint8_t* b) {
+  return __builtin_popcountll(word(a, 0) ^ word(b, 0)) + __builtin_popcountll(word(a, 1) ^ word(b, 1)) +
+         __builtin_popcountll(word(a, 2) ^ word(b, 2)) + __builtin_popcountll(word(a, 3) ^ word(b, 3));
+}
+
+// The query's words and the best two stay in registers over the scan.
+template <typename BestTwo>
+__attribute__((target("popcnt"))) void scan_popcnt(const std::uint8_t* q, const FeatureSet& train, int nt,
+                                                    BestTwo* out) {
+  const std::uint64_t q0 = word(q, 0), q1 = word(q, 1), q2 = word(q, 2), q3 = word(q, 3);
+  BestTwo b = *out;
+  for (int k = 0; k < nt; ++k) {
+    const std::uint8_t* t = train.descriptors[static_cast<std::size_t>(k)].data();
+    const int d = __builtin_popcountll(q0 ^ word(t, 0)) + __builtin_popcountll(q1 ^ word(t, 1)) +
+                  __builtin_popcountll(q2 ^ word(t, 2)) + __builtin_popcountll(q3 ^ word(t, 3));
+    b.add(d, k);
+  }
+  *out = b;
+}
+}  // namespace
+
+bool popcnt_available() {
+  static const bool has = __builtin_cpu_supports("popcnt");
+  return has;
+}
+int hamming256_popcnt(const std::uint8_t* a, const std::uint8_t* b) { return popcnt256(a, b); }
+#else
+bool popcnt_available() { return false; }
+int hamming256_popcnt(const std::uint8_t* a, const std::uint8_t* b) { return hamming256(a, b); }
+#endif
+
+void OrbMatcher::scan(const std::uint8_t* q, const FeatureSet& train, int nt, bool popcnt, BestTwo* b) {
+#ifdef ST_POPCNT_DISPATCH
+  if (popcnt) {
+    scan_popcnt(q, train, nt, b);
+    return;
+  }
+#else
+  (void)popcnt;
+#endif
+  for (int k = 0; k < nt; ++k) b->add(hamming256(q, train.descriptors[static_cast<std::size_t>(k)].data()), k);
+}
+
 bool OrbMatcher::accept(const BestTwo& b) {
   if (b.best_k < 0 || b.best > config_.max_distance) return false;
   if (b.second < kNoCandidate && static_cast<float>(b.best) >= config_.ratio * static_cast<float>(b.second)) {
@@ -153,13 +207,14 @@ int OrbMatcher::match_brute_force(const FeatureSet& query, const FeatureSet& tra
   const int nq = std::clamp(query.count, 0, kMaxKeypoints), nt = std::clamp(train.count, 0, kMaxKeypoints);
   if (!distance) distance = dist_scratch_.data();
   std::fill(claimed_by_.begin(), claimed_by_.begin() + nt, -1);
+  const bool popcnt = config_.use_popcnt && popcnt_available();
   for (int i = 0; i < nq; ++i) {
     match[i] = -1;
     distance[i] = 256;
     ref_angles_[static_cast<std::size_t>(i)] = query.keypoints[static_cast<std::size_t>(i)].angle_deg;
     const std::uint8_t* q = query.descriptors[static_cast<std::size_t>(i)].data();
     BestTwo b;
-    for (int k = 0; k < nt; ++k) b.add(hamming256(q, train.descriptors[static_cast<std::size_t>(k)].data()), k);
+    scan(q, train, nt, popcnt, &b);
     stats_.candidates += nt;
     if (accept(b)) claim(i, b.best_k, b.best, match, distance);
   }

@@ -18,6 +18,7 @@
 #include "bench.h"
 #include "core/image_pyramid.h"
 #include "core/orb_extractor.h"
+#include "core/orb_matcher.h"
 #include "core/valid_mask.h"
 #include "core/y4m.h"
 
@@ -53,6 +54,40 @@ std::vector<cv::Mat> make_frames(const cv::Mat& full, int n) {
     frames.push_back(out);
   }
   return frames;
+}
+
+// Relocalisation's brute-force matching (every keypoint of one frame
+// against every keypoint of another: two warped real frames), with the
+// POPCNT count where the CPU has it, against the same matcher counting
+// with SSE2 (the generic board's baseline ISA), in the same run.
+bool bench_brute_force(const st::bench::Options& opt, const std::vector<cv::Mat>& frames, st::OrbExtractor& orb,
+                       st::ValidMaskBuilder& valid) {
+  auto a = std::make_unique<st::FeatureSet>(), b = std::make_unique<st::FeatureSet>();
+  for (int k = 0; k < 2; ++k) {
+    const cv::Mat& f = frames[static_cast<std::size_t>(k)];
+    const st::GrayView view(f.ptr<std::uint8_t>(0), f.cols, f.rows, static_cast<std::ptrdiff_t>(f.step[0]));
+    orb.extract(view, st::GrayView(), valid.build(view), k == 0 ? *a : *b);
+  }
+  const int iterations = opt.iterations > 0 ? opt.iterations : 30;
+  std::vector<int> match(static_cast<std::size_t>(a->count) + 1);
+  std::vector<double> ms[2];
+  int matched[2] = {0, 0};
+  for (int use_popcnt = 0; use_popcnt < 2; ++use_popcnt) {
+    st::OrbMatcher matcher;
+    st::MatchConfig mc;
+    mc.use_popcnt = use_popcnt == 1;
+    if (!matcher.configure(mc)) return false;
+    for (int i = -2; i < iterations; ++i) {
+      const double t0 = st::bench::now_ms();
+      matched[use_popcnt] = matcher.match_brute_force(*a, *b, match.data(), nullptr);
+      if (i >= 0) ms[use_popcnt].push_back(st::bench::now_ms() - t0);
+    }
+  }
+  char note[200];
+  std::snprintf(note, sizeof note, "%d x %d keypoints, %d / %d matches; POPCNT %s on this CPU", a->count, b->count,
+                matched[1], matched[0], st::popcnt_available() ? "used" : "absent (both rows the same count)");
+  st::bench::report(opt, {"features.match_brute_force", ms[1], "same matcher, SSE2 bit count", ms[0], note});
+  return true;
 }
 
 int bench_features(const st::bench::Options& opt) {
@@ -106,7 +141,7 @@ int bench_features(const st::bench::Options& opt) {
   st::bench::report(opt, {"features.orb_extract", ours_extract_ms, "", {}, ""});
   st::bench::report(opt, {"features.valid_mask", mask_ms, "", {}, ""});
   st::bench::report(opt, {"features.pyramid levels, no smoothing (part of extract)", pyramid_ms, "", {}, ""});
-  return 0;
+  return bench_brute_force(opt, frames, orb, valid) ? 0 : 1;
 }
 
 }  // namespace
