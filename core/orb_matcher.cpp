@@ -52,18 +52,23 @@ __attribute__((target("popcnt"))) inline int popcnt256(const std::uint8_t* a, co
          __builtin_popcountll(word(a, 2) ^ word(b, 2)) + __builtin_popcountll(word(a, 3) ^ word(b, 3));
 }
 
-// The query's words and the best two stay in registers over the scan.
+// The query's words and the best two stay in registers over the scan of
+// train's descriptors idx[0..n) (0..n when idx is null).
 template <typename BestTwo>
-__attribute__((target("popcnt"))) void scan_popcnt(const std::uint8_t* q, const FeatureSet& train, int nt,
-                                                    BestTwo* out) {
+__attribute__((target("popcnt"))) void scan_popcnt(const std::uint8_t* q, const FeatureSet& train,
+                                                    const std::int32_t* idx, int n, BestTwo* out) {
   const std::uint64_t q0 = word(q, 0), q1 = word(q, 1), q2 = word(q, 2), q3 = word(q, 3);
   BestTwo b = *out;
-  for (int k = 0; k < nt; ++k) {
+  const auto add = [&](int k) {
     const std::uint8_t* t = train.descriptors[static_cast<std::size_t>(k)].data();
-    const int d = __builtin_popcountll(q0 ^ word(t, 0)) + __builtin_popcountll(q1 ^ word(t, 1)) +
-                  __builtin_popcountll(q2 ^ word(t, 2)) + __builtin_popcountll(q3 ^ word(t, 3));
-    b.add(d, k);
-  }
+    b.add(__builtin_popcountll(q0 ^ word(t, 0)) + __builtin_popcountll(q1 ^ word(t, 1)) +
+              __builtin_popcountll(q2 ^ word(t, 2)) + __builtin_popcountll(q3 ^ word(t, 3)),
+          k);
+  };
+  if (idx)
+    for (int j = 0; j < n; ++j) add(idx[j]);
+  else
+    for (int k = 0; k < n; ++k) add(k);
   *out = b;
 }
 }  // namespace
@@ -78,16 +83,20 @@ bool popcnt_available() { return false; }
 int hamming256_popcnt(const std::uint8_t* a, const std::uint8_t* b) { return hamming256(a, b); }
 #endif
 
-void OrbMatcher::scan(const std::uint8_t* q, const FeatureSet& train, int nt, bool popcnt, BestTwo* b) {
+void OrbMatcher::scan(const std::uint8_t* q, const FeatureSet& train, const std::int32_t* idx, int n, bool popcnt,
+                      BestTwo* b) {
 #ifdef ST_POPCNT_DISPATCH
   if (popcnt) {
-    scan_popcnt(q, train, nt, b);
+    scan_popcnt(q, train, idx, n, b);
     return;
   }
 #else
   (void)popcnt;
 #endif
-  for (int k = 0; k < nt; ++k) b->add(hamming256(q, train.descriptors[static_cast<std::size_t>(k)].data()), k);
+  for (int j = 0; j < n; ++j) {
+    const int k = idx ? idx[j] : j;
+    b->add(hamming256(q, train.descriptors[static_cast<std::size_t>(k)].data()), k);
+  }
 }
 
 bool OrbMatcher::accept(const BestTwo& b) {
@@ -180,6 +189,7 @@ int OrbMatcher::search_by_projection(const ProjectedPoint* points, int n, const 
   n = std::clamp(n, 0, kMaxMapPoints);
   if (!distance) distance = dist_scratch_.data();
   std::fill(claimed_by_.begin(), claimed_by_.begin() + std::clamp(frame.count, 0, kMaxKeypoints), -1);
+  const bool popcnt = config_.use_popcnt && popcnt_available();
   for (int i = 0; i < n; ++i) {
     const ProjectedPoint& p = points[i];
     match[i] = -1;
@@ -191,10 +201,7 @@ int OrbMatcher::search_by_projection(const ProjectedPoint* points, int n, const 
     const int hi = p.predicted_octave < 0 ? -1 : p.predicted_octave + config_.octave_window;
     const int nc = grid.query(p.x, p.y, p.radius_px, lo, hi, candidates_.data(), kMaxKeypoints);
     BestTwo b;
-    for (int j = 0; j < nc; ++j) {
-      const int k = candidates_[static_cast<std::size_t>(j)];
-      b.add(hamming256(p.descriptor.data(), frame.descriptors[static_cast<std::size_t>(k)].data()), k);
-    }
+    scan(p.descriptor.data(), frame, candidates_.data(), nc, popcnt, &b);
     stats_.candidates += nc;
     best_dist_[static_cast<std::size_t>(i)] = static_cast<std::uint16_t>(b.best);  // kNoCandidate if none
     if (accept(b)) claim(i, b.best_k, b.best, match, distance);
@@ -214,7 +221,7 @@ int OrbMatcher::match_brute_force(const FeatureSet& query, const FeatureSet& tra
     ref_angles_[static_cast<std::size_t>(i)] = query.keypoints[static_cast<std::size_t>(i)].angle_deg;
     const std::uint8_t* q = query.descriptors[static_cast<std::size_t>(i)].data();
     BestTwo b;
-    scan(q, train, nt, popcnt, &b);
+    scan(q, train, nullptr, nt, popcnt, &b);
     stats_.candidates += nt;
     if (accept(b)) claim(i, b.best_k, b.best, match, distance);
   }

@@ -26,8 +26,8 @@ int hamming256(const std::uint8_t* a, const std::uint8_t* b);
 int hamming256_portable(const std::uint8_t* a, const std::uint8_t* b);
 // True on an x86-64 CPU with the POPCNT instruction (detected at run time:
 // the generic board's baseline ISA lacks it, nearly every CPU has it).
-// Brute-force matching then counts bits with it: the same distances,
-// about 2x faster than the SSE2 count. False elsewhere.
+// Matching then counts bits with it: the same distances, about 2x faster
+// than the SSE2 count (brute force). False elsewhere.
 bool popcnt_available();
 // hamming256 by four POPCNTs. Call only where popcnt_available().
 int hamming256_popcnt(const std::uint8_t* a, const std::uint8_t* b);
@@ -38,7 +38,7 @@ struct MatchConfig {
   bool check_orientation = true;
   int rotation_bins = 30;       // 12 degrees per bin
   int octave_window = 1;        // search by projection: predicted octave +- this
-  bool use_popcnt = true;       // brute force: the POPCNT instruction where the CPU has it
+  bool use_popcnt = true;       // count bits with the POPCNT instruction where the CPU has it
                                 // (false: hamming256 as built, for tests and comparisons)
 };
 
@@ -94,8 +94,10 @@ class OrbMatcher {
       else if (d < second) { second = d; }
     }
   };
-  // The best two of train's first nt descriptors for one query descriptor.
-  static void scan(const std::uint8_t* q, const FeatureSet& train, int nt, bool popcnt, BestTwo* b);
+  // Adds train's descriptors idx[0..n) (0..n when idx is null) to b for one
+  // query descriptor, counting bits with POPCNT if popcnt.
+  static void scan(const std::uint8_t* q, const FeatureSet& train, const std::int32_t* idx, int n, bool popcnt,
+                   BestTwo* b);
   // Max-distance and ratio tests (counts ratio rejections).
   bool accept(const BestTwo& b);
   // Orientation filter, then the match count (into stats_).

@@ -46,11 +46,12 @@ TEST_CASE("orb matcher: hamming256 equals the portable count and cv::norm(NORM_H
   }
 }
 
-// Brute force (relocalisation) with the POPCNT count where the CPU has it:
-// the same matches and distances as with the SSE2 count, on 1500 x 1500
-// descriptors, half of them planted near-copies (a few bits flipped) so
-// that matches, ratio rejections and the orientation filter all happen.
-TEST_CASE("orb matcher: brute force gives the same matches with the POPCNT count as with the SIMD count") {
+// Brute force (relocalisation) and search by projection (tracking) with
+// the POPCNT count where the CPU has it: the same matches and distances as
+// with the SIMD count, on 1500 x 1500 descriptors, half of them planted
+// near-copies (a few bits flipped) so that matches, ratio rejections and
+// the orientation filter all happen.
+TEST_CASE("orb matcher: brute force and search by projection match the same with the POPCNT count as with the SIMD count") {
   std::mt19937 rng(11);
   auto query = std::make_unique<st::FeatureSet>(), train = std::make_unique<st::FeatureSet>();
   for (st::FeatureSet* f : {query.get(), train.get()}) {
@@ -83,7 +84,39 @@ TEST_CASE("orb matcher: brute force gives the same matches with the POPCNT count
     dist[k].assign(1500, -2);
     n[k] = m.match_brute_force(*query, *train, match[k].data(), dist[k].data());
   }
-  MESSAGE("matches " << n[0] << " / " << n[1] << "; POPCNT " << std::string(st::popcnt_available() ? "used" : "absent"));
+  MESSAGE("brute force matches " << n[0] << " / " << n[1] << "; POPCNT "
+                                  << std::string(st::popcnt_available() ? "used" : "absent"));
+  CHECK(n[0] > 400);
+  CHECK(n[0] == n[1]);
+  CHECK(match[0] == match[1]);
+  CHECK(dist[0] == dist[1]);
+
+  // Search by projection: the train keypoints as map points projected
+  // 3 px off their query partner (or anywhere, for the unplanted ones).
+  st::FeatureGrid grid;
+  REQUIRE(grid.configure(1280, 720).ok());
+  grid.build(*query);
+  std::vector<st::ProjectedPoint> points(1500);
+  for (int i = 0; i < 1500; ++i) {
+    const auto is = static_cast<std::size_t>(i);
+    const st::Keypoint& kp = i < 750 ? query->keypoints[2 * is] : train->keypoints[is];
+    points[is].x = kp.x + 3.f;
+    points[is].y = kp.y;
+    points[is].radius_px = 20.f;
+    points[is].predicted_octave = i % 3 ? kp.octave : -1;
+    points[is].ref_angle_deg = train->keypoints[is].angle_deg;
+    points[is].descriptor = train->descriptors[is];
+  }
+  for (int k = 0; k < 2; ++k) {
+    st::OrbMatcher m;
+    st::MatchConfig c;
+    c.use_popcnt = k == 1;
+    REQUIRE(m.configure(c).ok());
+    match[k].assign(1500, -2);
+    dist[k].assign(1500, -2);
+    n[k] = m.search_by_projection(points.data(), 1500, *query, grid, match[k].data(), dist[k].data());
+  }
+  MESSAGE("search by projection matches " << n[0] << " / " << n[1]);
   CHECK(n[0] > 400);
   CHECK(n[0] == n[1]);
   CHECK(match[0] == match[1]);
