@@ -73,23 +73,30 @@ TEST_CASE("orb matcher: brute force and search by projection match the same with
     for (int flip = 0; flip < i % 40; ++flip) train->descriptors[it][rng() % 32] ^= static_cast<std::uint8_t>(1u << (rng() % 8));
     if (i % 5) train->keypoints[it].angle_deg = std::fmod(query->keypoints[iq].angle_deg + 20.f, 360.f);
   }
-  std::vector<int> match[2], dist[2];
-  int n[2] = {0, 0};
-  for (int k = 0; k < 2; ++k) {
-    st::OrbMatcher m;
-    st::MatchConfig c;
-    c.use_popcnt = k == 1;
-    REQUIRE(m.configure(c).ok());
-    match[k].assign(1500, -2);
-    dist[k].assign(1500, -2);
-    n[k] = m.match_brute_force(*query, *train, match[k].data(), dist[k].data());
-  }
-  MESSAGE("brute force matches " << n[0] << " / " << n[1] << "; POPCNT "
-                                  << std::string(st::popcnt_available() ? "used" : "absent"));
-  CHECK(n[0] > 400);
-  CHECK(n[0] == n[1]);
-  CHECK(match[0] == match[1]);
-  CHECK(dist[0] == dist[1]);
+  // Runs one search with the SIMD count, then with POPCNT (where the CPU
+  // has it), and checks that the matches and distances are the same.
+  const auto same_both_ways = [](const char* what, const auto& search) {
+    std::vector<int> match[2], dist[2];
+    int n[2] = {0, 0};
+    for (int k = 0; k < 2; ++k) {
+      st::OrbMatcher m;
+      st::MatchConfig c;
+      c.use_popcnt = k == 1;
+      REQUIRE(m.configure(c).ok());
+      match[k].assign(1500, -2);
+      dist[k].assign(1500, -2);
+      n[k] = search(m, match[k].data(), dist[k].data());
+    }
+    MESSAGE(std::string(what) << " matches " << n[0] << " / " << n[1] << "; POPCNT "
+                 << std::string(st::popcnt_available() ? "used" : "absent"));
+    CHECK(n[0] > 400);
+    CHECK(n[0] == n[1]);
+    CHECK(match[0] == match[1]);
+    CHECK(dist[0] == dist[1]);
+  };
+  same_both_ways("brute force", [&](st::OrbMatcher& m, int* match, int* dist) {
+    return m.match_brute_force(*query, *train, match, dist);
+  });
 
   // Search by projection: the train keypoints as map points projected
   // 3 px off their query partner (or anywhere, for the unplanted ones).
@@ -107,20 +114,9 @@ TEST_CASE("orb matcher: brute force and search by projection match the same with
     points[is].ref_angle_deg = train->keypoints[is].angle_deg;
     points[is].descriptor = train->descriptors[is];
   }
-  for (int k = 0; k < 2; ++k) {
-    st::OrbMatcher m;
-    st::MatchConfig c;
-    c.use_popcnt = k == 1;
-    REQUIRE(m.configure(c).ok());
-    match[k].assign(1500, -2);
-    dist[k].assign(1500, -2);
-    n[k] = m.search_by_projection(points.data(), 1500, *query, grid, match[k].data(), dist[k].data());
-  }
-  MESSAGE("search by projection matches " << n[0] << " / " << n[1]);
-  CHECK(n[0] > 400);
-  CHECK(n[0] == n[1]);
-  CHECK(match[0] == match[1]);
-  CHECK(dist[0] == dist[1]);
+  same_both_ways("search by projection", [&](st::OrbMatcher& m, int* match, int* dist) {
+    return m.search_by_projection(points.data(), 1500, *query, grid, match, dist);
+  });
 }
 
 // The grid's branch-free scan writes past the hits; with a small capacity
