@@ -79,6 +79,7 @@ Status DirectAligner::configure(int width, int height, double scale) {
   const auto full_w = static_cast<std::size_t>(std::ceil(width * scale)) + 2;
   const auto full_h = static_cast<std::size_t>(std::ceil(height * scale)) + 2;
   ref_valid_.assign(full_w * full_h, 0);
+  valid_col_.assign(static_cast<std::size_t>(width), 0);
   p_model_.assign(kMaxPoints, Vec3::Zero());
   intensity_.assign(kMaxPoints, 0.0);
   residuals_.assign(kMaxPoints, 0.0);
@@ -90,21 +91,25 @@ Status DirectAligner::configure(int width, int height, double scale) {
 // pixel's centre in its own pixels; empty: all valid), eroded by one pixel
 // so that the edge of the field stop, which does not move with the scene,
 // never pulls the alignment.
-void DirectAligner::sample_valid(GrayView valid, std::uint8_t* mask) const {
+void DirectAligner::sample_valid(GrayView valid, std::uint8_t* mask) {
   const Level& l = levels_[0];
   const int w = l.w, h = l.h;
   const double full_w = l.w * l.scale, full_h = l.h * l.scale;
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      std::uint8_t v = 1;
-      if (!valid.empty()) {
-        const double fx = (x + 0.5) * l.scale, fy = (y + 0.5) * l.scale;  // full-resolution, pixel-edge origin
-        const int vx = std::clamp(static_cast<int>(fx * valid.width / full_w), 0, valid.width - 1);
-        const int vy = std::clamp(static_cast<int>(fy * valid.height / full_h), 0, valid.height - 1);
-        v = valid(vx, vy) != 0 ? 1 : 0;
-      }
-      mask[static_cast<std::size_t>(y) * w + x] = v;
+  if (valid.empty()) {
+    std::fill_n(mask, static_cast<std::size_t>(w) * static_cast<std::size_t>(h), std::uint8_t{1});
+  } else {
+    // The valid mask's column of each x and row of each y (full-resolution
+    // centres, pixel-edge origin), once per call rather than per pixel.
+    for (int x = 0; x < w; ++x)
+      valid_col_[static_cast<std::size_t>(x)] =
+          std::clamp(static_cast<int>((x + 0.5) * l.scale * valid.width / full_w), 0, valid.width - 1);
+    for (int y = 0; y < h; ++y) {
+      const int vy = std::clamp(static_cast<int>((y + 0.5) * l.scale * valid.height / full_h), 0, valid.height - 1);
+      const std::uint8_t* vrow = valid.row(vy);
+      std::uint8_t* out = mask + static_cast<std::size_t>(y) * w;
+      for (int x = 0; x < w; ++x) out[x] = vrow[valid_col_[static_cast<std::size_t>(x)]] != 0 ? 1 : 0;
     }
+  }
   // Erode (a pixel stays valid only if its 4-neighbours are), in place:
   // bit 0 keeps each pixel's sampled value for the neighbours still to come,
   // bit 1 collects the result, shifted down at the end.
@@ -142,23 +147,37 @@ void DirectAligner::build_half(Level* half, const Level& full, bool reference) {
 void DirectAligner::high_pass(Level* l, bool reference) {
   std::vector<float>& img = reference ? l->ref : l->cur;
   const int w = l->w, h = l->h, r = kHighPassRadius;
-  // Horizontal then vertical box sums through the scratch plane.
+  // Horizontal then vertical box sums through the scratch plane. Away from
+  // the border the taps need no clamping; the sums keep the same order
+  // there, so both forms give the same bits.
   for (int y = 0; y < h; ++y) {
     const float* row = img.data() + static_cast<std::ptrdiff_t>(y) * w;
     float* out = l->tmp.data() + static_cast<std::ptrdiff_t>(y) * w;
     for (int x = 0; x < w; ++x) {
+      if (x == r && w - r > r) {
+        for (; x < w - r; ++x) {
+          float s = 0.f;
+          for (int k = -r; k <= r; ++k) s += row[x + k];
+          out[x] = s;
+        }
+        if (x >= w) break;
+      }
       float s = 0.f;
       for (int k = -r; k <= r; ++k) s += row[std::clamp(x + k, 0, w - 1)];
       out[x] = s;
     }
   }
   const float inv = 1.f / static_cast<float>((2 * r + 1) * (2 * r + 1));
-  for (int y = 0; y < h; ++y)
+  for (int y = 0; y < h; ++y) {
+    const float* taps[2 * kHighPassRadius + 1];
+    for (int k = -r; k <= r; ++k) taps[k + r] = l->tmp.data() + static_cast<std::ptrdiff_t>(std::clamp(y + k, 0, h - 1)) * w;
+    float* out = l->gx.data() + static_cast<std::ptrdiff_t>(y) * w;  // gx as a second scratch plane
     for (int x = 0; x < w; ++x) {
       float s = 0.f;
-      for (int k = -r; k <= r; ++k) s += l->tmp[static_cast<std::size_t>(std::clamp(y + k, 0, h - 1)) * w + x];
-      l->gx[static_cast<std::size_t>(y) * w + x] = s * inv;  // gx as a second scratch plane
+      for (int k = 0; k <= 2 * r; ++k) s += taps[k][x];
+      out[x] = s * inv;
     }
+  }
   for (std::size_t i = 0; i < img.size(); ++i) img[i] -= l->gx[i];
 }
 

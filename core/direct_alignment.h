@@ -91,7 +91,7 @@ class DirectAligner {
     std::vector<float> ref, cur, gx, gy, tmp;
     std::vector<std::uint8_t> ref_mask, cur_mask;
   };
-  void sample_valid(GrayView valid, std::uint8_t* mask) const;
+  void sample_valid(GrayView valid, std::uint8_t* mask);
   bool build_reference();
   void build_half(Level* half, const Level& full, bool reference);
   void gradients(Level* l);
@@ -109,6 +109,7 @@ class DirectAligner {
   // The reference as handed over: its image and valid mask (0 x 0: all
   // valid); the levels are built from them when align() needs them.
   std::vector<std::uint8_t> ref_image_, ref_valid_;
+  std::vector<std::int32_t> valid_col_;  // sample_valid's column table (finest level's width)
   int ref_valid_w_ = 0, ref_valid_h_ = 0;
   // Reference points of the level being solved: model coordinates and intensity.
   std::vector<Vec3> p_model_;
