@@ -45,11 +45,13 @@ inline std::uint64_t word(const std::uint8_t* p, int i) {
   return w;
 }
 
-// Four 64-bit words, one POPCNT each (compiled for POPCNT whatever the
-// board's flags; only reached where the CPU has it).
-__attribute__((target("popcnt"))) inline int popcnt256(const std::uint8_t* a, const std::uint8_t* b) {
-  return __builtin_popcountll(word(a, 0) ^ word(b, 0)) + __builtin_popcountll(word(a, 1) ^ word(b, 1)) +
-         __builtin_popcountll(word(a, 2) ^ word(b, 2)) + __builtin_popcountll(word(a, 3) ^ word(b, 3));
+// Bits differing between the words q0..q3 and descriptor t: one POPCNT a
+// word (compiled for POPCNT whatever the board's flags; only reached where
+// the CPU has it).
+__attribute__((target("popcnt"))) inline int popcnt256(std::uint64_t q0, std::uint64_t q1, std::uint64_t q2,
+                                                       std::uint64_t q3, const std::uint8_t* t) {
+  return __builtin_popcountll(q0 ^ word(t, 0)) + __builtin_popcountll(q1 ^ word(t, 1)) +
+         __builtin_popcountll(q2 ^ word(t, 2)) + __builtin_popcountll(q3 ^ word(t, 3));
 }
 
 // The query's words and the best two stay in registers over the scan of
@@ -59,16 +61,12 @@ __attribute__((target("popcnt"))) void scan_popcnt(const std::uint8_t* q, const 
                                                     const std::int32_t* idx, int n, BestTwo* out) {
   const std::uint64_t q0 = word(q, 0), q1 = word(q, 1), q2 = word(q, 2), q3 = word(q, 3);
   BestTwo b = *out;
-  const auto add = [&](int k) {
-    const std::uint8_t* t = train.descriptors[static_cast<std::size_t>(k)].data();
-    b.add(__builtin_popcountll(q0 ^ word(t, 0)) + __builtin_popcountll(q1 ^ word(t, 1)) +
-              __builtin_popcountll(q2 ^ word(t, 2)) + __builtin_popcountll(q3 ^ word(t, 3)),
-          k);
-  };
-  if (idx)
-    for (int j = 0; j < n; ++j) add(idx[j]);
-  else
-    for (int k = 0; k < n; ++k) add(k);
+  // No lambda here: it would not carry the target attribute, and POPCNT
+  // code does not inline into it.
+  for (int j = 0; j < n; ++j) {
+    const int k = idx ? idx[j] : j;
+    b.add(popcnt256(q0, q1, q2, q3, train.descriptors[static_cast<std::size_t>(k)].data()), k);
+  }
   *out = b;
 }
 }  // namespace
@@ -77,7 +75,9 @@ bool popcnt_available() {
   static const bool has = __builtin_cpu_supports("popcnt");
   return has;
 }
-int hamming256_popcnt(const std::uint8_t* a, const std::uint8_t* b) { return popcnt256(a, b); }
+int hamming256_popcnt(const std::uint8_t* a, const std::uint8_t* b) {
+  return popcnt256(word(a, 0), word(a, 1), word(a, 2), word(a, 3), b);
+}
 #else
 bool popcnt_available() { return false; }
 int hamming256_popcnt(const std::uint8_t* a, const std::uint8_t* b) { return hamming256(a, b); }
