@@ -150,22 +150,23 @@ void DirectAligner::high_pass(Level* l, bool reference) {
   // Horizontal then vertical box sums through the scratch plane. Away from
   // the border the taps need no clamping; the sums keep the same order
   // there, so both forms give the same bits.
+  const int x_in = std::min(r, w), x_out = std::max(x_in, w - r);  // [x_in, x_out): no tap clamps
   for (int y = 0; y < h; ++y) {
     const float* row = img.data() + static_cast<std::ptrdiff_t>(y) * w;
     float* out = l->tmp.data() + static_cast<std::ptrdiff_t>(y) * w;
-    for (int x = 0; x < w; ++x) {
-      if (x == r && w - r > r) {
-        for (; x < w - r; ++x) {
-          float s = 0.f;
-          for (int k = -r; k <= r; ++k) s += row[x + k];
-          out[x] = s;
-        }
-        if (x >= w) break;
-      }
+    const auto clamped_sum = [&](int x) {
       float s = 0.f;
       for (int k = -r; k <= r; ++k) s += row[std::clamp(x + k, 0, w - 1)];
+      return s;
+    };
+    int x = 0;
+    for (; x < x_in; ++x) out[x] = clamped_sum(x);
+    for (; x < x_out; ++x) {
+      float s = 0.f;
+      for (int k = -r; k <= r; ++k) s += row[x + k];
       out[x] = s;
     }
+    for (; x < w; ++x) out[x] = clamped_sum(x);
   }
   const float inv = 1.f / static_cast<float>((2 * r + 1) * (2 * r + 1));
   for (int y = 0; y < h; ++y) {
