@@ -67,7 +67,8 @@ inline bool parse_int64(std::string_view tok, long long* out) {
   return ec == std::errc() && end == tok.data() + tok.size();
 }
 
-// The same, and within [lo, hi] (command-line values; NaN fails the range).
+// The same, and within [lo, hi] (command-line values); the output is
+// written only on success.
 inline bool parse_int64_in(std::string_view tok, long long lo, long long hi, long long* out) {
   long long v = 0;
   if (!parse_int64(tok, &v) || v < lo || v > hi) return false;
@@ -75,6 +76,8 @@ inline bool parse_int64_in(std::string_view tok, long long lo, long long hi, lon
   return true;
 }
 
+// parse_double, and within [lo, hi] (NaN fails the range); the output is
+// written only on success.
 inline bool parse_double_in(std::string_view tok, double lo, double hi, double* out) {
   double v = 0;
   if (!parse_double(tok, &v) || !(v >= lo && v <= hi)) return false;
