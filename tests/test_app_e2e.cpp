@@ -39,18 +39,23 @@ int track(const std::filesystem::path& seq, const std::filesystem::path& out,
   return code;
 }
 
-// Simulates a sequence into dir/seq, replays it into dir/out and scores it.
-// extra: replay options (kDeterministic for runs whose outcome must not
-// depend on the machine's speed).
-EvalReport simulate_track_evaluate(const std::filesystem::path& dir, int frames, const std::string& size, int seed,
-                                   const std::string& scenario, const std::string& extra = "") {
-  simulate(dir / "seq", frames, size, seed, scenario);
+// Replays dir/seq into dir/out and scores it. extra: replay options
+// (kDeterministic for runs whose outcome must not depend on the machine's
+// speed).
+EvalReport track_evaluate(const std::filesystem::path& dir, const std::string& extra = "") {
   std::string err;
   REQUIRE_MESSAGE(track(dir / "seq", dir / "out", &err, extra) == 0, err);
   auto report = evaluate_run(dir / "seq", dir / "out");
   REQUIRE_MESSAGE(report.ok(), (report.ok() ? std::string() : report.message()));
   MESSAGE(format_eval_table(report.value()));
   return report.value();
+}
+
+// Simulates a sequence into dir/seq, then track_evaluate().
+EvalReport simulate_track_evaluate(const std::filesystem::path& dir, int frames, const std::string& size, int seed,
+                                   const std::string& scenario, const std::string& extra = "") {
+  simulate(dir / "seq", frames, size, seed, scenario);
+  return track_evaluate(dir, extra);
 }
 
 // Where the mapping thread's corrections land decided whether fast seed 2
@@ -166,12 +171,7 @@ TEST_CASE("app_e2e: an H.264-compressed sequence (CRF 28, through ffmpeg) still 
   REQUIRE_MESSAGE(test::run_shell(decode) == 0, decode);
   // The codec really removed most of the bits.
   CHECK(std::filesystem::file_size(dir / "video.mp4") * 20 < std::filesystem::file_size(dir / "raw" / "video.y4m"));
-  std::string err;
-  REQUIRE_MESSAGE(track(dir / "seq", dir / "out", &err, kDeterministic) == 0, err);
-  auto report = evaluate_run(dir / "seq", dir / "out");
-  REQUIRE_MESSAGE(report.ok(), (report.ok() ? std::string() : report.message()));
-  MESSAGE(format_eval_table(report.value()));
-  check_run(report.value().result, 1.0, 1.5, 3.0);
+  check_run(track_evaluate(dir, kDeterministic).result, 1.0, 1.5, 3.0);
 }
 
 TEST_CASE("app_e2e: 200 simulated frames replay with zero heap allocations on the tracking thread" *
