@@ -15,8 +15,12 @@ inline std::filesystem::path shared_data(const std::string& rel) {
 // build/bin, where the executables land (end-to-end tests run them).
 inline std::filesystem::path bin_dir() { return SCOPETRACK_BIN_DIR; }
 
-// A fresh, empty scratch folder for one test.
+// A fresh, empty scratch folder for one test, named after the test and the
+// process. tests/main.cpp deletes them all when the process's tests pass.
 std::filesystem::path scratch_dir(const std::string& name);
+// Deletes every folder scratch_dir() made in this process, unless
+// SCOPETRACK_KEEP_TEST_TMP is set to something other than 0.
+void remove_scratch_dirs();
 
 // Timing budget in seconds for doctest::timeout(): generous ceilings that
 // catch gross regressions only. SCOPETRACK_TIME_SCALE multiplies them for
