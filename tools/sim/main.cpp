@@ -2,7 +2,7 @@
 // ground truth (docs/sequence-format.md).
 //   scopetrack-sim --scenario NAME --out DIR [--frames N] [--size WxH]
 //                  [--seed S] [--mesh FILE] [--field-stop on|off] [--organ-detail F]
-//                  [--shutter F]
+//                  [--shutter F] [--texture FILE.y4m] [--texture-scale PX_PER_MM]
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -19,7 +19,9 @@ void usage() {
                "                      [--frames N (300)] [--size WxH (1280x720; invivo 960x540)]\n"
                "                      [--seed S (1)] [--mesh FILE.ply|stl] [--field-stop on|off]\n"
                "                      [--organ-detail F (1; lower = smoother tissue)]\n"
-               "                      [--shutter F (0.5 of the frame interval; 0 = no motion blur)]\n");
+               "                      [--shutter F (0.5 of the frame interval; 0 = no motion blur)]\n"
+               "                      [--texture FILE.y4m (organ texture from a photo's first frame)]\n"
+               "                      [--texture-scale PX_PER_MM (4: photo pixels per mm of tissue)]\n");
 }
 
 // Returns an error message, or empty when all arguments were understood.
@@ -59,6 +61,11 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
     } else if (a == "--shutter") {
       if (!st::parse_double_in(v, 0.0, 1.0, &o->shutter))
         return "--shutter wants the open fraction of the frame interval, 0..1 (0: no motion blur)";
+    } else if (a == "--texture") {
+      o->texture_file = std::string(v);
+    } else if (a == "--texture-scale") {
+      if (!st::parse_double_in(v, 0.1, 1000.0, &o->texture_px_per_mm))
+        return "--texture-scale wants photo pixels per mm of tissue, 0.1..1000";
     } else if (a == "--field-stop") {
       if (v != "on" && v != "off") return "--field-stop wants on or off";
       o->field_stop = v == "on" ? 1 : 0;

@@ -59,11 +59,23 @@ void SceneRenderer::bake_detail(ShadeMesh* sm) const {
     const Vec3f e1 = mesh.vertex(mesh.tri[3 * t + 1]).cast<float>() - v0;
     const Vec3f e2 = mesh.vertex(mesh.tri[3 * t + 2]).cast<float>() - v0;
     const Material& m = materials_[static_cast<int>(sm->material[t])];
+    // The photo replaces the organ's procedural detail: no vessel, and the
+    // speckle channel carries the photo's relative albedo (see configure).
+    const PhotoTexture* photo = sm->material[t] == MaterialId::Liver ? settings_.organ_photo.get() : nullptr;
+    const Vec3f face_normal = e1.cross(e2);
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i) {
         const float b1 = static_cast<float>(i) / static_cast<float>(n - 1);
         const float b2 = static_cast<float>(j) / static_cast<float>(n - 1);
-        const Texture::Detail d = texture_.detail_sample(m, v0 + b1 * e1 + b2 * e2);
+        const Vec3f p = v0 + b1 * e1 + b2 * e2;
+        Texture::Detail d;
+        if (photo) {
+          d.vessel = 0.0f;
+          d.speckle = (photo->ratio_at(p, face_normal) - PhotoTexture::kMinRatio) /
+                      (PhotoTexture::kMaxRatio - PhotoTexture::kMinRatio);
+        } else {
+          d = texture_.detail_sample(m, p);
+        }
         *out++ = static_cast<std::uint8_t>(std::lround(255.0f * d.vessel));
         *out++ = static_cast<std::uint8_t>(std::lround(255.0f * d.speckle));
       }
@@ -82,6 +94,13 @@ Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settin
   texture_ = Texture(settings.seed);
   for (int m = 0; m < static_cast<int>(MaterialId::Count); ++m) {
     materials_[m] = material(static_cast<MaterialId>(m));
+    if (static_cast<MaterialId>(m) == MaterialId::Liver && settings.organ_photo) {
+      // apply_detail's speckle factor 1 + 2 s (speckle - 1/2) maps the
+      // baked 0..1 back onto the photo's ratio kMinRatio..kMaxRatio.
+      materials_[m].speckle_strength = 0.5f * (PhotoTexture::kMaxRatio - PhotoTexture::kMinRatio);
+      materials_[m].vessel_strength = 0.0f;
+      materials_[m].spots = 0.0f;
+    }
     if (static_cast<MaterialId>(m) == MaterialId::Liver) {
       materials_[m].speckle_strength *= static_cast<float>(settings.organ_detail);
       materials_[m].spots *= static_cast<float>(settings.organ_detail);

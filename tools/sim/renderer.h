@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <utility>
 #include <vector>
 
@@ -19,6 +20,7 @@
 #include "core/rasterizer.h"
 #include "core/result.h"
 #include "tools/sim/materials.h"
+#include "tools/sim/photo_texture.h"
 #include "tools/sim/scenario.h"
 #include "tools/sim/scene.h"
 
@@ -49,6 +51,10 @@ struct RenderSettings {
   // the frame time: the length of the motion blur; 0 renders every frame
   // sharp.
   double shutter = kDefaultShutter;
+  // The organ's fine texture from a photograph instead of the procedural
+  // speckle, spots and vessels (photo_texture.h); organ_detail scales its
+  // contrast as it scales the speckle's. Null: procedural.
+  std::shared_ptr<const PhotoTexture> organ_photo;
 };
 
 class SceneRenderer {

@@ -58,6 +58,11 @@ Result<SimSetup> make_setup(const SimOptions& o) {
     perturb_along_normals(s.prior, 1.0, o.seed + 31);
   }
   s.render = default_render(o, W, H);
+  if (!o.texture_file.empty()) {
+    auto photo = PhotoTexture::load(o.texture_file, o.texture_px_per_mm);
+    if (!photo) return photo.error();
+    s.render.organ_photo = photo.value();
+  }
   s.frames = o.frames;
   return s;
 }
