@@ -114,8 +114,8 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
                       "spread_cell_keypoints in [1, 1024]");
   if (c.edge_border_px < kOrbPatchRadius + 1 || c.edge_border_px > 64)
     return make_error("OrbConfig.edge_border_px must be in [16, 64] (descriptor patch radius 15)");
-  if (c.organ_margin_px < 0 || c.organ_margin_px > 256)
-    return make_error("OrbConfig.organ_margin_px must be in [0, 256]");
+  if (c.organ_margin_px < -256 || c.organ_margin_px > 256)
+    return make_error("OrbConfig.organ_margin_px must be in [-256, 256]");
   if (Status s = pyramid_.configure(width, height, c.levels, c.scale_factor); !s) return s;
   if (Status s = fast_.configure(width); !s) return s;
   // false (the slower (dx, dy) path) only for frames beyond 2340 px wide
@@ -140,7 +140,7 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   cand_tmp_.assign(cap, Candidate{});
   cell_has_strict_.assign(static_cast<std::size_t>(ceil_div(width, c.threshold_cell_px) + 1) *
                               (ceil_div(height, c.threshold_cell_px) + 1), 0);
-  organ_dilated_.assign(static_cast<std::size_t>(width) * height, 0);
+  organ_margined_.assign(static_cast<std::size_t>(width) * height, 0);
   organ_tmp_.assign(static_cast<std::size_t>(width) * height, 0);
   organ_counts_.assign(static_cast<std::size_t>(width), 0);
   organ_prefix_.assign(static_cast<std::size_t>(width) + 1, 0);
@@ -175,13 +175,14 @@ void OrbExtractor::prepare_masks(GrayView organ, GrayView valid) {
   organ_ = GrayView();
   valid_ = valid.empty() ? GrayView() : valid;
   if (!organ.empty()) {
-    const int r = ceil_div(config_.organ_margin_px * organ.width, width_);
-    if (r > 0 && organ.width <= width_ && organ.height <= height_) {
-      const ImageView<std::uint8_t> dilated(organ_dilated_.data(), organ.width, organ.height);
+    const int m = config_.organ_margin_px;
+    const int r = m >= 0 ? ceil_div(m * organ.width, width_) : -ceil_div(-m * organ.width, width_);
+    if (r != 0 && organ.width <= width_ && organ.height <= height_) {
+      const ImageView<std::uint8_t> margined(organ_margined_.data(), organ.width, organ.height);
       const MorphScratch scratch{ImageView<std::uint8_t>(organ_tmp_.data(), organ.width, organ.height),
                                  organ_counts_.data(), organ_prefix_.data()};
-      morph_square(organ, r, dilated, scratch);
-      organ_ = dilated;
+      morph_square(organ, r, margined, scratch);
+      organ_ = margined;
     } else {
       organ_ = organ;
     }
@@ -255,13 +256,36 @@ void OrbExtractor::build_chunk_map(int level) {
   }
 }
 
+// The centre and 8 points on the patch's circle (level-0 coordinates) in
+// the organ mask: the descriptor describes tissue, not the organ's outline.
+bool OrbExtractor::patch_on_organ(float X, float Y, float scale) const {
+  static constexpr float kC = 0.70710678f;
+  static constexpr float kDx[9] = {0, 1, kC, 0, -kC, -1, -kC, 0, kC};
+  static constexpr float kDy[9] = {0, 0, kC, 1, kC, 0, -kC, -1, -kC};
+  const float r = static_cast<float>(kOrbPatchRadius + 1) * scale;
+  for (int i = 0; i < 9; ++i) {
+    const int mx = to_mask(X + kDx[i] * r, organ_.width, width_);
+    const int my = to_mask(Y + kDy[i] * r, organ_.height, height_);
+    // Off the image is not off the organ: the frame's edge is no outline.
+    if (!organ_.contains(mx, my)) {
+      if (i == 0) return false;
+      continue;
+    }
+    if (!organ_(mx, my)) return false;
+  }
+  return true;
+}
+
 bool OrbExtractor::inside_masks(int level, int x, int y) const {
   const float s = pyramid_.scale(level);
   const float X = to_level0(static_cast<float>(x), s), Y = to_level0(static_cast<float>(y), s);
   const int bx = std::clamp(static_cast<int>(X) / kBlock, 0, blocks_x_ - 1);
   const int by = std::clamp(static_cast<int>(Y) / kBlock, 0, blocks_y_ - 1);
-  if (block_ok_[static_cast<std::size_t>(2 * blocks_x_ * blocks_y_ + by * blocks_x_ + bx)]) return true;
-  if (!organ_.empty()) {
+  const std::size_t nb = static_cast<std::size_t>(blocks_x_) * blocks_y_;
+  const bool patch_test = config_.organ_patch_inside && !organ_.empty();
+  if (patch_test && !patch_on_organ(X, Y, s)) return false;
+  if (block_ok_[2 * nb + static_cast<std::size_t>(by * blocks_x_ + bx)]) return true;
+  if (!organ_.empty() && !patch_test) {  // (the patch test covered the centre)
     const int mx = to_mask(X, organ_.width, width_), my = to_mask(Y, organ_.height, height_);
     if (!organ_.contains(mx, my) || !organ_(mx, my)) return false;
   }

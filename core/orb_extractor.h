@@ -7,7 +7,7 @@
 //
 // Pipeline per frame: pyramid (levels x scale_factor) -> FAST-9 per level at
 // the strict threshold with scores -> keep corners inside the organ mask
-// (dilated by organ_margin_px) and the valid mask (centre and all 16 FAST
+// (grown or shrunk by organ_margin_px) and the valid mask (centre and all 16 FAST
 // circle pixels) -> FAST at the relaxed threshold only in threshold cells
 // without a strict corner (ORB-SLAM2's rule), as a cascade (halfway
 // threshold, then relaxed) that scans only spreading cells where a weaker
@@ -46,7 +46,11 @@ struct OrbConfig {
   int fast_threshold_relaxed = 7; // used in threshold cells where strict found nothing
   int threshold_cell_px = 32;     // threshold cell size, level pixels
   int edge_border_px = 16;        // no keypoint closer to a level's edge (patch radius 15 + 1)
-  int organ_margin_px = 8;        // organ mask dilation, level-0 pixels
+  int organ_margin_px = 8;        // organ mask dilation (> 0) or erosion (< 0), level-0 pixels
+  // Keep a keypoint only if its descriptor patch lies on the organ: 8
+  // points on the circle of radius (kOrbPatchRadius + 1) x its level's
+  // scale, in the organ mask (after the margin), besides the centre.
+  bool organ_patch_inside = false;
   int min_spread_cell_px = 8;     // smallest spreading cell, level pixels
   // Spreading cells are sized to hold about this many of the level's target
   // over the allowed area. 1 = ORB-SLAM-like evenness (one per cell first),
@@ -91,6 +95,7 @@ class OrbExtractor {
     std::uint8_t score;   // FAST score
   };
   void prepare_masks(GrayView organ, GrayView valid);
+  bool patch_on_organ(float x0, float y0, float scale) const;
   void block_any_all(GrayView mask, std::uint8_t* any, std::uint8_t* all);
   void mark_full_blocks();
   void build_chunk_map(int level);
@@ -114,7 +119,7 @@ class OrbExtractor {
   std::vector<Candidate> cand_;
   std::vector<Candidate> cand_tmp_;          // spread(): candidates bucketed by cell
   std::vector<std::uint8_t> cell_has_strict_;
-  std::vector<std::uint8_t> organ_dilated_;  // organ mask dilated by the margin (mask resolution)
+  std::vector<std::uint8_t> organ_margined_;  // organ mask grown or shrunk by the margin (mask resolution)
   std::vector<std::uint8_t> organ_tmp_;                // morph_square scratch: rows
   std::vector<std::int32_t> organ_counts_, organ_prefix_;  // and counts
   std::vector<std::uint8_t> block_ok_;       // per 16x16 level-0 block: [0] any allowed pixel,
@@ -132,7 +137,7 @@ class OrbExtractor {
   std::vector<std::uint8_t> spread_open_chunks_;  // per 16-pixel chunk of one row: touches an open cell
   std::array<int, 2> relaxed_cascade_{};     // thresholds of the relaxed passes, descending
   int relaxed_cell_px_ = 0;                  // spreading cell size of the closed map (0: all open)
-  GrayView organ_;                           // dilated organ mask of this frame (or empty)
+  GrayView organ_;                           // organ mask of this frame with the margin (or empty)
   GrayView valid_;                           // valid mask of this frame (or empty)
   int blocks_x_ = 0, blocks_y_ = 0;
   float allowed_fraction_ = 1.f;             // share of level-0 blocks allowed this frame
