@@ -60,7 +60,7 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
                std::to_string(kMaxMapPoints) + "]");
   if (c.raster_downscale != 1 && c.raster_downscale != 2 && c.raster_downscale != 4)
     return err("raster_downscale must be 1, 2 or 4");
-  if (c.mask_margin_px < 0 || c.mask_margin_px > 256) return err("mask_margin_px outside [0, 256]");
+  if (c.mask_margin_px < -256 || c.mask_margin_px > 256) return err("mask_margin_px outside [-256, 256]");
   if (c.min_inliers < 6) return err("min_inliers must be >= 6 (a pose has 6 degrees of freedom)");
   if (!(c.min_inlier_ratio >= 0 && c.min_inlier_ratio <= 1) || !(c.min_mask_agreement >= 0 && c.min_mask_agreement <= 1))
     return err("min_inlier_ratio and min_mask_agreement must be in [0, 1]");
@@ -113,6 +113,7 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   oc.levels = config.levels;
   oc.scale_factor = config.scale_factor;
   oc.organ_margin_px = config.mask_margin_px;
+  oc.organ_patch_inside = config.mask_patch_inside;
   if (Status s = orb_.configure(oc, config.width, config.height); !s.ok()) return make_error("tracker: ORB: " + s.message());
   MatchConfig mc;
   mc.max_distance = config.max_hamming;

@@ -44,7 +44,17 @@ struct TrackerConfig {
   // Pseudo-segmentation.
   bool use_mask = true;            // false: --no-mask ablation (whole valid image)
   int raster_downscale = 2;        // mask/depth raster at 1/2 resolution
-  int mask_margin_px = 12;         // organ mask dilation, full-resolution pixels
+  // Organ mask margin, full-resolution pixels: > 0 dilates, < 0 erodes.
+  // A little inside: the prior and the predicted pose are never exact.
+  int mask_margin_px = -4;
+  // Keep only keypoints whose descriptor patch (radius 16 px, times 1.2 per
+  // octave) lies on the organ (OrbConfig::organ_patch_inside). The organ's
+  // outline is an occluding contour: it slides over the surface as the
+  // view changes, and a patch that reaches across it describes the contour,
+  // not the tissue, so its map point pulls the pose towards where the
+  // contour was. On smooth tissue such keypoints are a large share and the
+  // map drifts until tracking is lost (README, "the organ's outline").
+  bool mask_patch_inside = true;
   // Bounded map.
   int max_keyframes = 48;          // <= kMaxKeyframes
   int max_map_points = 12000;      // <= kMaxMapPoints
