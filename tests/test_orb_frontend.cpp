@@ -107,32 +107,44 @@ TEST_CASE("orb masks: organ mask at 1/4 resolution restricts keypoints (with mar
   CHECK(outside == 0);
 }
 
-TEST_CASE("orb masks: a negative organ margin keeps keypoints that far inside the organ's outline") {
+namespace {
+
+// Extracts the real frame with the organ a rectangle (x 320..800, y 160..520
+// full-res, given at 1/4 resolution) and counts the keypoints k closer than
+// reach(k) to its outline; *total gets the keypoint count.
+template <class Reach>
+int near_rectangle_outline(const OrbConfig& cfg, Reach reach, int* total) {
   const cv::Mat luma = real_frame_luma(1280, 720);
   REQUIRE(!luma.empty());
   cv::Mat organ = cv::Mat::zeros(180, 320, CV_8UC1);
-  cv::rectangle(organ, cv::Rect(80, 40, 120, 90), cv::Scalar(255), cv::FILLED);  // x 320..800, y 160..520 full-res
-  auto count_near_outline = [&](int margin_px, int* total) {
-    OrbConfig cfg;
-    cfg.organ_margin_px = margin_px;
-    OrbExtractor orb;
-    REQUIRE(orb.configure(cfg, 1280, 720));
-    auto f = std::make_unique<FeatureSet>();
-    REQUIRE(orb.extract(view_of(luma), view_of(organ), GrayView(), *f));
-    int near = 0;
-    for (int i = 0; i < f->count; ++i) {
-      const Keypoint& k = f->keypoints[static_cast<std::size_t>(i)];
-      // Within 28 px of the outline (32 less one 1/4-resolution mask pixel).
-      if (k.x < 320 + 28 || k.x > 800 - 28 || k.y < 160 + 28 || k.y > 520 - 28) ++near;
-    }
-    *total = f->count;
-    return near;
-  };
+  cv::rectangle(organ, cv::Rect(80, 40, 120, 90), cv::Scalar(255), cv::FILLED);
+  OrbExtractor orb;
+  REQUIRE(orb.configure(cfg, 1280, 720));
+  auto f = std::make_unique<FeatureSet>();
+  REQUIRE(orb.extract(view_of(luma), view_of(organ), GrayView(), *f));
+  int near = 0;
+  for (int i = 0; i < f->count; ++i) {
+    const Keypoint& k = f->keypoints[static_cast<std::size_t>(i)];
+    const float r = reach(k);
+    if (k.x - r < 320 || k.x + r > 800 || k.y - r < 160 || k.y + r > 520) ++near;
+  }
+  *total = f->count;
+  return near;
+}
+
+}  // namespace
+
+TEST_CASE("orb masks: a negative organ margin keeps keypoints that far inside the organ's outline") {
+  // Within 28 px of the outline: 32 less one 1/4-resolution mask pixel.
+  const auto band = [](const Keypoint&) { return 28.f; };
+  OrbConfig cfg;
+  cfg.organ_margin_px = -32;
   int total_eroded = 0, total_plain = 0;
-  CHECK(count_near_outline(-32, &total_eroded) == 0);
+  CHECK(near_rectangle_outline(cfg, band, &total_eroded) == 0);
   CHECK(total_eroded > 100);
   // Control: without the margin the band along the outline has keypoints.
-  CHECK(count_near_outline(0, &total_plain) > 20);
+  cfg.organ_margin_px = 0;
+  CHECK(near_rectangle_outline(cfg, band, &total_plain) > 20);
   // Out of range either way is refused.
   OrbConfig bad;
   bad.organ_margin_px = -300;
@@ -141,34 +153,17 @@ TEST_CASE("orb masks: a negative organ margin keeps keypoints that far inside th
 }
 
 TEST_CASE("orb masks: with organ_patch_inside every keypoint's descriptor patch lies on the organ") {
-  const cv::Mat luma = real_frame_luma(1280, 720);
-  REQUIRE(!luma.empty());
-  cv::Mat organ = cv::Mat::zeros(180, 320, CV_8UC1);
-  cv::rectangle(organ, cv::Rect(80, 40, 120, 90), cv::Scalar(255), cv::FILLED);  // x 320..800, y 160..520 full-res
-  // Keypoints whose patch circle (radius 16 px x 1.2^octave) reaches more
-  // than one mask pixel (4 px) past the rectangle.
-  auto crossing = [&](bool patch_inside, int* total) {
-    OrbConfig cfg;
-    cfg.organ_margin_px = 0;
-    cfg.organ_patch_inside = patch_inside;
-    OrbExtractor orb;
-    REQUIRE(orb.configure(cfg, 1280, 720));
-    auto f = std::make_unique<FeatureSet>();
-    REQUIRE(orb.extract(view_of(luma), view_of(organ), GrayView(), *f));
-    int n = 0;
-    for (int i = 0; i < f->count; ++i) {
-      const Keypoint& k = f->keypoints[static_cast<std::size_t>(i)];
-      const float r = 16.f * std::pow(1.2f, static_cast<float>(k.octave)) - 4.f;
-      if (k.x - r < 320 || k.x + r > 800 || k.y - r < 160 || k.y + r > 520) ++n;
-    }
-    *total = f->count;
-    return n;
-  };
+  // The patch circle (radius 16 px x 1.2^octave) less one mask pixel (4 px).
+  const auto patch = [](const Keypoint& k) { return 16.f * std::pow(1.2f, static_cast<float>(k.octave)) - 4.f; };
+  OrbConfig cfg;
+  cfg.organ_margin_px = 0;
+  cfg.organ_patch_inside = true;
   int with = 0, without = 0;
-  CHECK(crossing(true, &with) == 0);
+  CHECK(near_rectangle_outline(cfg, patch, &with) == 0);
   CHECK(with > 100);
   // Control: the centre alone lets such keypoints through.
-  CHECK(crossing(false, &without) > 20);
+  cfg.organ_patch_inside = false;
+  CHECK(near_rectangle_outline(cfg, patch, &without) > 20);
   CHECK(without > with);
 }
 
