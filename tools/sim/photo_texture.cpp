@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "hal/y4m_reader.h"
+#include "tools/sim/corner_density.h"
 
 namespace st::sim {
 namespace {
@@ -86,15 +87,15 @@ Result<std::shared_ptr<const PhotoTexture>> PhotoTexture::from_luma(const cv::Ma
   cv::GaussianBlur(linear, linear, cv::Size(), kDenoiseSigmaPx);
   // Highlights move with the light, not the tissue: fill them (and their
   // rims) from the surrounding tissue by normalised convolution.
-  cv::Mat keep;
-  cv::compare(luma(crop), kHighlightLevel, keep, cv::CMP_LT);
-  cv::erode(keep, keep, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * kHighlightMarginPx + 1, 2 * kHighlightMarginPx + 1)));
+  const cv::Mat keep = exclude_highlights(luma(crop), cv::Mat(crop.size(), CV_8U, cv::Scalar(255)), kHighlightLevel,
+                                          kHighlightMarginPx);
   // Coarser and coarser until the middle of a large highlight is reached.
   cv::Mat weight, num, den;
   keep.convertTo(weight, CV_32F, 1.0 / 255.0);
+  const cv::Mat kept = linear.mul(weight);
   cv::Mat clean = linear.clone(), filled = keep.clone();
   for (double sigma = kFillSigmaPx; sigma <= 8 * kFillSigmaPx; sigma *= 2) {
-    cv::GaussianBlur(linear.mul(weight), num, cv::Size(), sigma, 0.0, cv::BORDER_REFLECT);
+    cv::GaussianBlur(kept, num, cv::Size(), sigma, 0.0, cv::BORDER_REFLECT);
     cv::GaussianBlur(weight, den, cv::Size(), sigma, 0.0, cv::BORDER_REFLECT);
     for (int y = 0; y < clean.rows; ++y)
       for (int x = 0; x < clean.cols; ++x)
