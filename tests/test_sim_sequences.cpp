@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -234,15 +235,27 @@ TEST_CASE("sim sequence: bad options are refused with a message") {
 TEST_CASE("sim CLI: --shutter and --organ-detail refuse what is not a number in range, writing nothing") {
   const auto dir = st::test::scratch_dir("sim_cli_bad");
   const std::string log = (dir / "log").string();
+  const auto refused = [&](const std::string& opt, const std::string& bad) {
+    CAPTURE(opt);
+    CAPTURE(bad);
+    const std::string cmd = st::test::bin_command("scopetrack-sim") + " --scenario orbit --frames 2 --out " +
+                            st::test::shell_quoted(dir / "seq") + " " + opt + " " + bad + " > " +
+                            st::test::shell_quoted(log) + " 2>&1";
+    CHECK(st::test::run_shell(cmd) == 2);
+    CHECK(st::test::read_file_bytes(log).find(opt + " wants") != std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(dir / "seq" / "video.y4m"));
+  };
   for (const char* opt : {"--shutter", "--organ-detail"})
-    for (const char* bad : {"nan", "-0.1", "3", "0.5x", "''", "1e"}) {
-      CAPTURE(opt);
-      CAPTURE(bad);
-      const std::string cmd = st::test::bin_command("scopetrack-sim") + " --scenario orbit --frames 2 --out " +
-                              st::test::shell_quoted(dir / "seq") + " " + opt + " " + bad + " > " +
-                              st::test::shell_quoted(log) + " 2>&1";
-      CHECK(st::test::run_shell(cmd) == 2);
-      CHECK(st::test::read_file_bytes(log).find(std::string(opt) + " wants") != std::string::npos);
-      CHECK_FALSE(std::filesystem::exists(dir / "seq" / "video.y4m"));
-    }
+    for (const char* bad : {"nan", "-0.1", "3", "0.5x", "''", "1e"}) refused(opt, bad);
+  for (const char* bad : {"nan", "-0.1", "0", "2000", "0.5x", "''", "1e"}) refused("--texture-scale", bad);
+  // A texture that is no photo: a clear error naming it, nothing written.
+  {
+    std::ofstream(dir / "not.y4m") << "P5 no video";
+  }
+  const std::string cmd = st::test::bin_command("scopetrack-sim") + " --scenario orbit --frames 2 --out " +
+                          st::test::shell_quoted(dir / "seq") + " --texture " +
+                          st::test::shell_quoted(dir / "not.y4m") + " > " + st::test::shell_quoted(log) + " 2>&1";
+  CHECK(st::test::run_shell(cmd) == 1);
+  CHECK(st::test::read_file_bytes(log).find("not.y4m") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(dir / "seq" / "video.y4m"));
 }
