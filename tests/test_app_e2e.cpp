@@ -115,7 +115,7 @@ TEST_CASE(
 // 12 px) the map drifted on it: 0 % lost but TRE 3.02 / 13.68 px on this
 // sequence; now 0.80 / 1.86 px (--ba-lag 3, so every run is the same).
 TEST_CASE("app_e2e: tissue from the real liver photo (orbit, 640x360) is tracked without drift" *
-          doctest::timeout(test::budget_s(300))) {
+          doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_photo");
   simulate(dir / "seq", 300, "640x360", 1, "orbit",
            " --texture " + test::shell_quoted(test::shared_data("real/laparoscopy_liver_1080p.y4m")));
@@ -138,7 +138,7 @@ TEST_CASE("app_e2e: tissue from the real liver photo (orbit, 640x360) is tracked
 // a tracker that never recovers (fast seed 2: ~70 %); the accuracy bounds
 // are the test.
 TEST_CASE("app_e2e: fast bursts (seed 4, 640x360): no biased map after a burst, no wrong pose" *
-          doctest::timeout(test::budget_s(300))) {
+          doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_fast");
   const EvalReport report = simulate_track_evaluate(dir, 300, "640x360", 4, "fast", kDeterministic);
   CHECK(summary_number(dir / "out", "ba_lag_frames") == 3);
@@ -154,7 +154,7 @@ TEST_CASE("app_e2e: fast bursts (seed 4, 640x360): no biased map after a burst, 
 // 640x360 it is still lost: even from the true pose the map yields 20-35
 // matches there.
 TEST_CASE("app_e2e: a fast swing into unmapped tissue is recovered (fast seed 2, 960x540), no wrong pose" *
-          doctest::timeout(test::budget_s(600))) {
+          doctest::timeout(test::budget_s(600)) * doctest::test_suite(test::kLongSuite)) {
   const EvalReport report =
       simulate_track_evaluate(test::scratch_dir("app_e2e_fast_swing"), 300, "960x540", 2, "fast", kDeterministic);
   check_run(report.result, 10.0, 2.0, 6.0);
@@ -169,7 +169,7 @@ TEST_CASE("app_e2e: a fast swing into unmapped tissue is recovered (fast seed 2,
 // organ and the poses lag the truth, TRE 16 / 39 px with 0.7 % lost and
 // hundreds of inliers a frame: a limit the README notes.)
 TEST_CASE("app_e2e: an H.264-compressed sequence (CRF 28, through ffmpeg) still tracks accurately" *
-          doctest::timeout(test::budget_s(300))) {
+          doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   if (std::string(SCOPETRACK_FFMPEG).empty()) return;  // ffmpeg is optional (Dependencies.cmake)
   const auto dir = test::scratch_dir("app_e2e_h264");
   simulate(dir / "raw", 150, "640x360", 5);
@@ -190,7 +190,7 @@ TEST_CASE("app_e2e: an H.264-compressed sequence (CRF 28, through ffmpeg) still 
 }
 
 TEST_CASE("app_e2e: 200 simulated frames replay with zero heap allocations on the tracking thread" *
-          doctest::timeout(test::budget_s(300))) {
+          doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_alloc");
   simulate(dir / "seq", 200, "320x180", 5);
   std::string err;

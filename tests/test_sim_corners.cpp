@@ -88,7 +88,7 @@ SimFigures measure_sim(ScenarioKind kind, const std::vector<int>& frames, int to
 }  // namespace
 
 TEST_CASE("sim: organ corner density matches the real liver and the corners are surface-fixed" *
-          doctest::timeout(test::budget_s(120))) {
+          doctest::timeout(test::budget_s(120)) * doctest::test_suite(test::kLongSuite)) {
   cv::Rect liver;
   const cv::Mat real = real_luma_720p(&liver);
   cv::Mat mask(real.size(), CV_8U, cv::Scalar(0));
@@ -114,7 +114,7 @@ TEST_CASE("sim: organ corner density matches the real liver and the corners are 
 }
 
 TEST_CASE("sim: --organ-detail makes the organ smoother, and the texture's corners go with it" *
-          doctest::timeout(test::budget_s(120))) {
+          doctest::timeout(test::budget_s(120)) * doctest::test_suite(test::kLongSuite)) {
   const SimFigures full = measure_sim(ScenarioKind::Orbit, {150}, 300, 1.0);
   const SimFigures half = measure_sim(ScenarioKind::Orbit, {150}, 300, 0.5);
   const SimFigures none = measure_sim(ScenarioKind::Orbit, {150}, 300, 0.0);
@@ -155,7 +155,7 @@ TEST_CASE("sim: a shutter outside 0..1 or not a number is refused") {
 }
 
 TEST_CASE("sim: --texture maps the real frame's tissue onto the organ, without its highlights or black border" *
-          doctest::timeout(test::budget_s(120))) {
+          doctest::timeout(test::budget_s(120)) * doctest::test_suite(test::kLongSuite)) {
   const auto path = test::shared_data("real/laparoscopy_liver_1080p.y4m");
   auto photo = PhotoTexture::load(path);
   REQUIRE(photo);

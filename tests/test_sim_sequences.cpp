@@ -178,27 +178,27 @@ void check_scenario(const char* name, int frames, const std::filesystem::path& m
 
 }  // namespace
 
-TEST_CASE("sim sequence: orbit ground truth is exact" * doctest::timeout(st::test::budget_s(30))) {
+TEST_CASE("sim sequence: orbit ground truth is exact" * doctest::timeout(st::test::budget_s(30)) * doctest::test_suite(test::kLongSuite)) {
   check_scenario("orbit", 20);
 }
-TEST_CASE("sim sequence: fast ground truth is exact, blurred frames included" * doctest::timeout(st::test::budget_s(30))) {
+TEST_CASE("sim sequence: fast ground truth is exact, blurred frames included" * doctest::timeout(st::test::budget_s(30)) * doctest::test_suite(test::kLongSuite)) {
   check_scenario("fast", 20);
 }
-TEST_CASE("sim sequence: outofview ground truth is exact, organ leaves the image" * doctest::timeout(st::test::budget_s(30))) {
+TEST_CASE("sim sequence: outofview ground truth is exact, organ leaves the image" * doctest::timeout(st::test::budget_s(30)) * doctest::test_suite(test::kLongSuite)) {
   check_scenario("outofview", 20);
 }
-TEST_CASE("sim sequence: manipulation ground truth is exact (organ moves)" * doctest::timeout(st::test::budget_s(30))) {
+TEST_CASE("sim sequence: manipulation ground truth is exact (organ moves)" * doctest::timeout(st::test::budget_s(30)) * doctest::test_suite(test::kLongSuite)) {
   check_scenario("manipulation", 20);
 }
-TEST_CASE("sim sequence: invivo ground truth is exact through distortion" * doctest::timeout(st::test::budget_s(30))) {
+TEST_CASE("sim sequence: invivo ground truth is exact through distortion" * doctest::timeout(st::test::budget_s(30)) * doctest::test_suite(test::kLongSuite)) {
   check_scenario("invivo", 20);
 }
 
-TEST_CASE("sim sequence: the CT liver of shared/data as the organ (--mesh)" * doctest::timeout(st::test::budget_s(30))) {
+TEST_CASE("sim sequence: the CT liver of shared/data as the organ (--mesh)" * doctest::timeout(st::test::budget_s(30)) * doctest::test_suite(test::kLongSuite)) {
   check_scenario("orbit", 10, st::test::shared_data("liver/liver.ply"));
 }
 
-TEST_CASE("sim sequence: deterministic for a seed" * doctest::timeout(st::test::budget_s(30))) {
+TEST_CASE("sim sequence: deterministic for a seed" * doctest::timeout(st::test::budget_s(30)) * doctest::test_suite(test::kLongSuite)) {
   auto video_of = [](std::uint64_t seed, const char* dir) {
     SimOptions o;
     o.scenario = ScenarioKind::InVivo;

@@ -121,7 +121,7 @@ Outcome track(const SmoothInvivo& seq, bool confirm) {
 // reported pose within 6.8 px; the 12 frames the normal gates passed among
 // the confirmed ones: median 4.8 px.
 TEST_CASE("tracker: direct alignment confirms the right poses that smooth, noisy tissue's inlier ratio refuses" *
-          doctest::timeout(test::budget_s(600))) {
+          doctest::timeout(test::budget_s(600)) * doctest::test_suite(test::kLongSuite)) {
   const SmoothInvivo seq(150);
   const Outcome with = track(seq, true);
   const Outcome without = track(seq, false);

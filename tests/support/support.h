@@ -31,6 +31,11 @@ inline double budget_s(double seconds) {
   return seconds * (scale > 0 ? scale : 1.0);
 }
 
+// Tests that replay or render whole sequences are in the doctest suite
+// "long" (CTest label "long"): the sanitizer pass (tools/test.sh --sanitize)
+// leaves them to the Release pass, which runs everything.
+inline constexpr const char* kLongSuite = "long";
+
 // Reads a whole file into bytes (test fixtures).
 std::string read_file_bytes(const std::filesystem::path& p);
 
