@@ -1,7 +1,8 @@
-// Binary mask erosion / dilation with a square structuring element: erosion
-// by running counts (cost independent of the radius), dilation by nearest
-// set pixel per row and an OR of rows (cheaper for the small radii of masks). Pixels outside the image
-// never erode nor dilate (OpenCV's default border for erode/dilate).
+// Binary mask erosion / dilation with a square structuring element: small
+// radii by the AND / OR of shifted rows and of rows (vectorised loops),
+// larger ones by running counts (erosion) or the nearest set pixel per row
+// (dilation). Pixels outside the image never erode nor dilate (OpenCV's
+// default border for erode/dilate).
 // No allocation: the caller passes the scratch (configure-time buffers).
 #pragma once
 
