@@ -147,6 +147,7 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   blocks_x_ = ceil_div(width, kBlock);
   blocks_y_ = ceil_div(height, kBlock);
   block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 5, 0);
+  organ_depth_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_, 0);
   span_rows_.assign(static_cast<std::size_t>(blocks_y_) * 2, 0);
   span_cols_.assign(static_cast<std::size_t>(blocks_x_) * 2, 0);
   row_max_.assign(static_cast<std::size_t>(kMaxImageWidth), 0);  // masks up to kMaxImageWidth wide
@@ -205,6 +206,7 @@ void OrbExtractor::prepare_masks(GrayView organ, GrayView valid) {
       ok[i] &= any2[i];
       all[i] &= all2[i];
     }
+    if (m.data == organ_.data) organ_block_depths(all2);
   }
   int allowed = 0;
   for (std::size_t i = 0; i < nb; ++i) allowed += ok[i];
@@ -256,6 +258,35 @@ void OrbExtractor::build_chunk_map(int level) {
   }
 }
 
+// organ_depth_: per block, the Chebyshev distance in blocks to the nearest
+// block not wholly on the (margined) organ, 0 for such a block itself;
+// blocks beyond the image count as on the organ (the patch test ignores
+// points off the image). Two passes over the block grid; capped at 255.
+void OrbExtractor::organ_block_depths(const std::uint8_t* organ_all) {
+  const int bw = blocks_x_, bh = blocks_y_;
+  std::uint8_t* d = organ_depth_.data();
+  for (int i = 0; i < bw * bh; ++i) d[i] = organ_all[i] ? 255 : 0;
+  const auto relax = [&](int bx, int by, int from_x, int from_y) {
+    if (from_x < 0 || from_y < 0 || from_x >= bw || from_y >= bh) return;
+    std::uint8_t& v = d[by * bw + bx];
+    v = std::min<std::uint8_t>(v, static_cast<std::uint8_t>(std::min(d[from_y * bw + from_x] + 1, 255)));
+  };
+  for (int by = 0; by < bh; ++by)
+    for (int bx = 0; bx < bw; ++bx) {
+      relax(bx, by, bx - 1, by);
+      relax(bx, by, bx - 1, by - 1);
+      relax(bx, by, bx, by - 1);
+      relax(bx, by, bx + 1, by - 1);
+    }
+  for (int by = bh - 1; by >= 0; --by)
+    for (int bx = bw - 1; bx >= 0; --bx) {
+      relax(bx, by, bx + 1, by);
+      relax(bx, by, bx + 1, by + 1);
+      relax(bx, by, bx, by + 1);
+      relax(bx, by, bx - 1, by + 1);
+    }
+}
+
 // The centre and 8 points on the patch's circle (level-0 coordinates) in
 // the organ mask: the descriptor describes tissue, not the organ's outline.
 bool OrbExtractor::patch_on_organ(float X, float Y, float scale) const {
@@ -263,6 +294,13 @@ bool OrbExtractor::patch_on_organ(float X, float Y, float scale) const {
   static constexpr float kDx[9] = {0, 1, kC, 0, -kC, -1, -kC, 0, kC};
   static constexpr float kDy[9] = {0, 0, kC, 1, kC, 0, -kC, -1, -kC};
   const float r = static_cast<float>(kOrbPatchRadius + 1) * scale;
+  // Deep inside the organ, the blocks around answer at once: points within
+  // (depth - 1) blocks of the centre's block lie on wholly organ blocks, and
+  // one block more covers the mask's rounding at block edges.
+  const int bx = std::clamp(static_cast<int>(X) / kBlock, 0, blocks_x_ - 1);
+  const int by = std::clamp(static_cast<int>(Y) / kBlock, 0, blocks_y_ - 1);
+  if (static_cast<float>((organ_depth_[static_cast<std::size_t>(by * blocks_x_ + bx)] - 2) * kBlock) >= r)
+    return true;
   for (int i = 0; i < 9; ++i) {
     const int mx = to_mask(X + kDx[i] * r, organ_.width, width_);
     const int my = to_mask(Y + kDy[i] * r, organ_.height, height_);

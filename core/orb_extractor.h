@@ -98,6 +98,7 @@ class OrbExtractor {
   bool patch_on_organ(float x0, float y0, float scale) const;
   void block_any_all(GrayView mask, std::uint8_t* any, std::uint8_t* all);
   void mark_full_blocks();
+  void organ_block_depths(const std::uint8_t* organ_all);
   void build_chunk_map(int level);
   bool inside_masks(int level, int x, int y) const;
   int filter_strict(int level, int n_fast);
@@ -124,6 +125,7 @@ class OrbExtractor {
   std::vector<std::int32_t> organ_counts_, organ_prefix_;  // and counts
   std::vector<std::uint8_t> block_ok_;       // per 16x16 level-0 block: [0] any allowed pixel,
                                              // [1] all allowed, [2] neighbourhood fully allowed, [3..4] scratch
+  std::vector<std::uint8_t> organ_depth_;    // per block: blocks to the nearest one not wholly organ
   std::vector<std::int32_t> span_rows_, span_cols_;  // block_any_all(): mask span per block row / column
   std::vector<std::uint8_t> row_max_, row_min_;      // block_any_all(): one block row of the mask reduced
   std::vector<std::uint8_t> chunk_ok_;       // per level: rows x 16-pixel chunks
