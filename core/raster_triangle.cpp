@@ -273,6 +273,7 @@ void walk_rows(PreparedTriangle* t, int y_stop, const Target& target, Span* s,
 // row, and stays far inside int32 for a box of kSmallBoxPx.
 struct BoxSetup {
   int x0, y0, x1, y1;  // pixel box, clipped to the image, inclusive
+  bool clipped_right;  // the triangle goes on past the image's last column
   std::int32_t k0[3], kx[3], ky[3];
   double iz_c, iz_gx, iz_gy;
   float gx, iz_min, iz_max;
@@ -291,6 +292,7 @@ bool setup_box(const FixedTriangle& t, const DepthPlane& plane, std::int32_t id,
   b->x1 = static_cast<int>(std::min<std::int64_t>(x_hi, target.width - 1));
   b->y0 = static_cast<int>(std::max<std::int64_t>(y_lo, 0));
   b->y1 = static_cast<int>(std::min<std::int64_t>(y_hi, target.height - 1));
+  b->clipped_right = x_hi > target.width - 1;
   for (int i = 0; i < 3; ++i) {
     const int j = i == 2 ? 0 : i + 1;
     const std::int64_t dx = t.x[j] - t.x[i], dy = t.y[j] - t.y[i];
@@ -356,22 +358,19 @@ void draw_box_portable(const BoxSetup& b, const Target& target, Counters* counte
 // Same tests and arithmetic as draw_box_portable, kLanes columns per step;
 // lanes past the box are masked off (they may lie past the image edge).
 void draw_box_simd(const BoxSetup& b, const Target& target, Counters* counters) {
-  std::int32_t lane_k[3][kLanes], lane_i[kLanes];
-  float lane_f[kLanes];
-  for (int i = 0; i < kLanes; ++i) {
-    for (int e = 0; e < 3; ++e) lane_k[e][i] = b.kx[e] * i;
-    lane_i[i] = i;
-    lane_f[i] = static_cast<float>(i);
-  }
+  static constexpr std::int32_t kLaneI[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+  static constexpr float kLaneF[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15};
+  static_assert(kLanes <= 16, "lane tables hold 16 lanes");
+  const cv::v_int32 lanes = cv::vx_load(kLaneI);
   cv::v_int32 k_lane[3], k_step[3];
   for (int e = 0; e < 3; ++e) {
-    k_lane[e] = cv::vx_load(lane_k[e]);
+    k_lane[e] = lanes * cv::vx_setall_s32(b.kx[e]);
     k_step[e] = cv::vx_setall_s32(b.kx[e] * kLanes);
   }
-  const cv::v_int32 lanes = cv::vx_load(lane_i), last = cv::vx_setall_s32(b.x1),
-                    minus_one = cv::vx_setall_s32(-1), id = cv::vx_setall_s32(b.id);
+  const cv::v_int32 last = cv::vx_setall_s32(b.x1), minus_one = cv::vx_setall_s32(-1),
+                    id = cv::vx_setall_s32(b.id);
   const cv::v_float32 gx = cv::vx_setall_f32(b.gx), iz_min = cv::vx_setall_f32(b.iz_min),
-                      iz_max = cv::vx_setall_f32(b.iz_max), lane0 = cv::vx_load(lane_f),
+                      iz_max = cv::vx_setall_f32(b.iz_max), lane0 = cv::vx_load(kLaneF),
                       f_step = cv::vx_setall_f32(static_cast<float>(kLanes));
   cv::v_int32 count = cv::vx_setzero_s32();
   std::int32_t kr[3] = {b.k0[0], b.k0[1], b.k0[2]};
@@ -384,7 +383,11 @@ void draw_box_simd(const BoxSetup& b, const Target& target, Counters* counters) 
     cv::v_float32 kf = lane0;
     for (int x = b.x0; x <= b.x1; x += kLanes) {
       cv::v_int32 cover = (ka | kb | kc) > minus_one;
-      if (x + kLanes - 1 > b.x1) cover = cover & ((cv::vx_setall_s32(x) + lanes) <= last);
+      // Columns past the box are outside the triangle (the exact test says
+      // so) unless the image cut the box: then they lie off the image and
+      // are masked, so that the last column never spills into the next row.
+      if (b.clipped_right && x + kLanes - 1 > b.x1)
+        cover = cover & ((cv::vx_setall_s32(x) + lanes) <= last);
       // No branch on coverage: in boxes this small most groups are partly
       // covered and the branch would mispredict; uncovered lanes keep old.
       count = count - cover;
