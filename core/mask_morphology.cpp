@@ -106,8 +106,10 @@ void erode_rows_shifted(ImageView<const std::uint8_t> in, int r, ImageView<std::
   }
 }
 
-// The AND of the rows within r (rows are 0 / 255 here).
-void erode_columns(ImageView<const std::uint8_t> in, int r, ImageView<std::uint8_t> out) {
+// The AND (erosion) or the OR (dilation) of the rows within r; the rows
+// hold 0 or 255 here.
+template <bool kErode>
+void combine_columns(ImageView<const std::uint8_t> in, int r, ImageView<std::uint8_t> out) {
   const int w = in.width, h = in.height;
   for (int y = 0; y < h; ++y) {
     std::uint8_t* d = out.row(y);
@@ -115,20 +117,7 @@ void erode_columns(ImageView<const std::uint8_t> in, int r, ImageView<std::uint8
     std::copy(in.row(y0), in.row(y0) + w, d);
     for (int yy = y0 + 1; yy <= y1; ++yy) {
       const std::uint8_t* t = in.row(yy);
-      for (int x = 0; x < w; ++x) d[x] &= t[x];
-    }
-  }
-}
-
-void dilate_columns(ImageView<const std::uint8_t> in, int r, ImageView<std::uint8_t> out) {
-  const int w = in.width, h = in.height;
-  for (int y = 0; y < h; ++y) {
-    std::uint8_t* d = out.row(y);
-    const int y0 = std::max(0, y - r), y1 = std::min(h - 1, y + r);
-    std::copy(in.row(y0), in.row(y0) + w, d);
-    for (int yy = y0 + 1; yy <= y1; ++yy) {
-      const std::uint8_t* t = in.row(yy);
-      for (int x = 0; x < w; ++x) d[x] |= t[x];
+      for (int x = 0; x < w; ++x) d[x] = kErode ? (d[x] & t[x]) : (d[x] | t[x]);
     }
   }
 }
@@ -141,12 +130,12 @@ void morph_square(ImageView<const std::uint8_t> in, int k, ImageView<std::uint8_
   const int r = std::min(k < 0 ? -k : k, std::max(in.width, in.height));
   if (!erode) {
     dilate_rows(in, r, scratch.rows);
-    dilate_columns(scratch.rows, r, out);
+    combine_columns<false>(scratch.rows, r, out);
     return;
   }
   if (r <= kShiftedOrMaxRadius) {
     erode_rows_shifted(in, r, scratch.rows);
-    erode_columns(scratch.rows, r, out);
+    combine_columns<true>(scratch.rows, r, out);
     return;
   }
   horizontal_pass(in, r, erode, scratch.rows, scratch.row_prefix);
