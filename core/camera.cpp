@@ -46,6 +46,54 @@ Vec2 Distortion::distort(const Vec2& xn, Eigen::Matrix2d* J) const {
   return out;
 }
 
+namespace {
+
+// The lens model must map the ideal image onto the captured one without
+// folding over: where it folds, a pixel has two ideal positions (or none)
+// and undistorted keypoints land anywhere, so poses come out confidently
+// wrong. Rays are walked out from the principal point in the ideal
+// normalised plane, one pixel at a time, until the distorted point has
+// left the image: along the way the map must keep its orientation
+// (det J > 0) and carry the point outwards (J u . u > 0). A ray that never
+// leaves the image within a 170-degree field of view folds as well.
+Status check_no_fold(const Pinhole& K, const Distortion& d) {
+  if (d.count == 0 || d.is_zero()) return Status::Ok();
+  constexpr int kRays = 72;
+  constexpr double kMaxRadius = 11.4;  // tan(85 deg): a 170-degree field of view
+  constexpr double kMarginPx = 2.0;
+  const double step = 1.0 / std::max(K.fx, K.fy);  // about one pixel
+  for (int i = 0; i < kRays; ++i) {
+    const double angle = 2.0 * M_PI * i / kRays;
+    const Vec2 u(std::cos(angle), std::sin(angle));
+    bool left_image = false;
+    for (double r = 0.0; r <= kMaxRadius && !left_image; r += step) {
+      Eigen::Matrix2d J;
+      const Vec2 xd = d.distort(r * u, &J);
+      const Vec2 px(K.fx * xd.x() + K.cx, K.fy * xd.y() + K.cy);
+      if (!px.allFinite() || !J.allFinite() || !(J.determinant() > 0.0) ||
+          !((J * u).dot(u) > 0.0)) {
+        const double from_centre_px = r * std::max(K.fx, K.fy);
+        return make_error("the distortion coefficients fold the image over " +
+                          std::to_string(static_cast<int>(from_centre_px)) +
+                          " px from the principal point (direction " +
+                          std::to_string(static_cast<int>(angle * 180.0 / M_PI)) +
+                          " deg): not a lens. Check the order (OpenCV: k1 k2 p1 p2 k3 [k4 k5 "
+                          "k6]) and that the calibration belongs to this image size");
+      }
+      left_image = px.x() < -kMarginPx || px.y() < -kMarginPx ||
+                   px.x() > K.width - 1 + kMarginPx || px.y() > K.height - 1 + kMarginPx;
+    }
+    if (!left_image)
+      return make_error("the distortion coefficients never reach the image's edge within a "
+                        "170-degree field of view (direction " +
+                        std::to_string(static_cast<int>(angle * 180.0 / M_PI)) +
+                        " deg): not a lens this image could come from");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
 Status CameraModel::validate(const Pinhole& K, const Distortion& d) {
   if (K.width <= 0 || K.height <= 0 || K.width > kMaxImageWidth || K.height > kMaxImageHeight)
     return make_error("image size " + std::to_string(K.width) + "x" + std::to_string(K.height) +
@@ -65,7 +113,7 @@ Status CameraModel::validate(const Pinhole& K, const Distortion& d) {
   for (int i = 0; i < d.count; ++i)
     if (!std::isfinite(d.k[i])) return make_error("distortion coefficient " + std::to_string(i) +
                                                   " is not finite");
-  return Status::Ok();
+  return check_no_fold(K, d);
 }
 
 Vec2 CameraModel::project(const Vec3& p_camera) const {

@@ -58,7 +58,9 @@ class CameraModel {
   CameraModel(const Pinhole& K, const Distortion& d) : K_(K), d_(d) {}
 
   // fx, fy > 0 and finite, principal point inside the image, distortion
-  // count 0/4/5/8 with finite values, image size positive and below caps.
+  // count 0/4/5/8 with finite values, image size positive and below caps,
+  // and a distortion that maps the image one to one (it does not fold
+  // over anywhere between the principal point and the image's edge).
   static Status validate(const Pinhole& K, const Distortion& d);
 
   const Pinhole& pinhole() const { return K_; }

@@ -122,6 +122,39 @@ TEST_CASE("camera validation rejects bad calibrations") {
   CHECK_FALSE(CameraModel::validate(Pinhole{900, 900, 640, 360, 1280, 720}, three).ok());
 }
 
+TEST_CASE("camera validation refuses a distortion that folds the image, accepts real lenses") {
+  const Pinhole K{900, 905, 639.5, 359.5, 1280, 720};
+  // Barrel distortion this strong turns back at 0.47 normalised radius
+  // (420 px), before the image's corners: two image points per ideal ray.
+  Distortion folds;
+  folds.count = 4;
+  folds.k = {-1.5, 0, 0, 0, 0, 0, 0, 0};
+  const Status s = CameraModel::validate(K, folds);
+  REQUIRE_FALSE(s.ok());
+  CHECK(s.message().find("fold") != std::string::npos);
+  // A rational model that turns back at 0.35 normalised radius, inside.
+  Distortion rational;
+  rational.count = 8;
+  rational.k = {0, 0, 0, 0, 0, 2.0, 0, 0};
+  CHECK_FALSE(CameraModel::validate(K, rational).ok());
+  // Real lenses pass: the simulator's invivo lens and the round-trip tests'
+  // ones; so do strong but monotonic coefficients, wrong as they may be for
+  // a given video (that mismatch no static check can see).
+  Distortion invivo;
+  invivo.count = 5;
+  invivo.k = {-0.28, 0.10, 0.0005, -0.0004, -0.015, 0, 0, 0};
+  CHECK(CameraModel::validate(Pinhole{700, 700, 479.5, 269.5, 960, 540}, invivo).ok());
+  for (double k1 : {-0.3, -0.1, 0.0, 0.15}) {
+    CAPTURE(k1);
+    const CameraModel cam = barrel_camera(k1);
+    CHECK(CameraModel::validate(cam.pinhole(), cam.distortion()).ok());
+  }
+  Distortion strong;
+  strong.count = 5;
+  strong.k = {10, -50, 0, 0, 100, 0, 0, 0};
+  CHECK(CameraModel::validate(Pinhole{230.4, 230.4, 162.75, 87, 320, 180}, strong).ok());
+}
+
 #ifdef SCOPETRACK_HAVE_CALIB3D
 TEST_CASE("projection agrees with OpenCV's projectPoints") {
   const CameraModel cam = barrel_camera(-0.3);
