@@ -62,7 +62,13 @@ void SceneRenderer::bake_detail(ShadeMesh* sm) const {
     // The photo replaces the organ's procedural detail: no vessel, and the
     // speckle channel carries the photo's relative albedo (see configure).
     const PhotoTexture* photo = sm->material[t] == MaterialId::Liver ? settings_.organ_photo.get() : nullptr;
-    const Vec3f face_normal = e1.cross(e2);
+    // The photo's triplanar blend follows the shading normal, interpolated
+    // from the vertices: with the face's own normal the blend jumped at
+    // every edge, and the organ showed its triangles as a net of seams,
+    // surface-fixed edges that real tissue does not have.
+    const Vec3f& n0 = sm->vertex[mesh.tri[3 * t]].normal;
+    const Vec3f& n1 = sm->vertex[mesh.tri[3 * t + 1]].normal;
+    const Vec3f& n2 = sm->vertex[mesh.tri[3 * t + 2]].normal;
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i) {
         const float b1 = static_cast<float>(i) / static_cast<float>(n - 1);
@@ -70,8 +76,9 @@ void SceneRenderer::bake_detail(ShadeMesh* sm) const {
         const Vec3f p = v0 + b1 * e1 + b2 * e2;
         Texture::Detail d;
         if (photo) {
+          const Vec3f normal = (1.0f - b1 - b2) * n0 + b1 * n1 + b2 * n2;
           d.vessel = 0.0f;
-          d.speckle = (photo->ratio_at(p, face_normal) - PhotoTexture::kMinRatio) /
+          d.speckle = (photo->ratio_at(p, normal) - PhotoTexture::kMinRatio) /
                       (PhotoTexture::kMaxRatio - PhotoTexture::kMinRatio);
         } else {
           d = texture_.detail_sample(m, p);
