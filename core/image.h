@@ -61,4 +61,13 @@ class Image {
 
 using GrayView = ImageView<const std::uint8_t>;
 
+// The chroma planes of a 4:2:0 frame, U (Cb) and V (Cr), each
+// (width + 1) / 2 x (height + 1) / 2 of the luma's width x height, 128 =
+// neutral. Empty (either plane) = no chroma: a Cmono video, or a caller
+// that has none.
+struct ChromaView {
+  GrayView u, v;
+  bool empty() const { return u.empty() || v.empty(); }
+};
+
 }  // namespace st

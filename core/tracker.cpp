@@ -23,6 +23,7 @@ const char* to_string(TrackState s) {
 const char* to_string(Stage s) {
   switch (s) {
     case Stage::kPyramid: return "pyramid";
+    case Stage::kOccluder: return "occluder";
     case Stage::kRaster: return "raster";
     case Stage::kDetect: return "detect";
     case Stage::kDescribe: return "describe";
@@ -108,6 +109,13 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   if (Status s = raster_.configure(mesh, rc); !s.ok()) return make_error("tracker: raster: " + s.message());
   if (Status s = valid_mask_.configure(ValidMaskConfig{}, config.width, config.height); !s.ok())
     return make_error("tracker: valid mask: " + s.message());
+  // The occluder mask is at the chroma's resolution, the valid mask's (1/2).
+  if (Status s = occluder_.configure(OccluderMaskConfig{}, config.width, config.height); !s.ok())
+    return make_error("tracker: occluder mask: " + s.message());
+  {
+    const GrayView vm = valid_mask_.mask();
+    valid_without_occluders_.assign(static_cast<std::size_t>(vm.width) * static_cast<std::size_t>(vm.height), 0);
+  }
   OrbConfig oc;
   oc.n_features = config.n_features;
   oc.levels = config.levels;
@@ -193,7 +201,7 @@ void TrackerImpl::start() {
   ba_min_version_ = ba_version_ + 1;  // a job still out refers to the map just cleared
 }
 
-TrackResult TrackerImpl::step(GrayView luma, int frame_index) {
+TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma) {
   TrackResult r;
   const double t0 = now_ms();
   if (!started_ || luma.empty() || luma.width != config_.width || luma.height != config_.height) {
@@ -204,6 +212,8 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index) {
   const bool ba_applied = apply_ba();  // safe point: nothing of this frame uses the map yet
   valid_view_ = valid_mask_.build(luma);
   const double t_valid = now_ms();
+  const int occluder_pixels = remove_occluders_from_valid(luma, chroma);
+  const double t_occluder = now_ms();
   if (!initialised_) {
     r = initialise(luma, frame_index);
   } else if (lost_) {
@@ -212,6 +222,8 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index) {
     r = track(luma, frame_index);
   }
   r.times_ms[static_cast<int>(Stage::kPyramid)] += t_valid - t0;  // valid mask (and BA apply)
+  if (occluder_pixels >= 0) r.times_ms[static_cast<int>(Stage::kOccluder)] = t_occluder - t_valid;
+  r.occluder_pixels = occluder_pixels;
   if (r.keyframe) ba_window_pending_ = true;
   if (r.state == TrackState::kRelocalised && config_.ba_global_after_reloc) ba_global_pending_ = true;
   if (r.state == TrackState::kInitialised) ba_window_pending_ = ba_global_pending_ = false;  // a fresh map
@@ -221,6 +233,21 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index) {
   r.keyframes = map_.keyframe_count();
   if (config_.now_ns) r.times_ms[static_cast<int>(Stage::kTotal)] = now_ms() - t0;
   return r;
+}
+
+// The occluder mask of this frame taken out of valid_view_ (which then
+// views valid_without_occluders_). Returns the valid pixels removed, -1
+// when there is no occluder mask (off, no chroma, or chroma of another size).
+int TrackerImpl::remove_occluders_from_valid(GrayView luma, ChromaView chroma) {
+  if (!config_.use_occluder_mask || chroma.empty() || valid_view_.empty()) return -1;
+  const GrayView occluder = occluder_.build(luma, chroma.u, chroma.v);
+  if (occluder.empty()) return -1;
+  if (occluder_.candidate_pixels() == 0) return 0;  // then the mask is empty
+  ImageView<std::uint8_t> out(valid_without_occluders_.data(), valid_view_.width, valid_view_.height,
+                              valid_view_.width);
+  const int removed = remove_occluders(valid_view_, occluder, out);
+  valid_view_ = out;
+  return removed;
 }
 
 double TrackerImpl::now_ms() const {
@@ -265,9 +292,9 @@ void Tracker::start() {
   if (impl_) impl_->start();
 }
 
-TrackResult Tracker::step(GrayView luma, int frame_index) {
+TrackResult Tracker::step(GrayView luma, int frame_index, ChromaView chroma) {
   if (!impl_) return TrackResult{};
-  return impl_->step(luma, frame_index);
+  return impl_->step(luma, frame_index, chroma);
 }
 
 void Tracker::stop() {

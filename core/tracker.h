@@ -31,7 +31,7 @@ enum class TrackState : std::uint8_t {
 const char* to_string(TrackState s);
 
 // Stage timings of one step, milliseconds (0 where the stage did not run).
-enum class Stage : int { kPyramid, kRaster, kDetect, kDescribe, kMatch, kPose, kMap, kReloc, kTotal, kCount };
+enum class Stage : int { kPyramid, kOccluder, kRaster, kDetect, kDescribe, kMatch, kPose, kMap, kReloc, kTotal, kCount };
 const char* to_string(Stage s);
 using StageTimes = std::array<double, static_cast<int>(Stage::kCount)>;
 
@@ -55,6 +55,13 @@ struct TrackerConfig {
   // contour was. On smooth tissue such keypoints are a large share and the
   // map drifts until tracking is lost (README, "the organ's outline").
   bool mask_patch_inside = true;
+  // Occluders: when step() is given chroma, near-neutral pixels (surgical
+  // instruments: steel, black/grey plastic; core/occluder_mask.h) leave the
+  // valid mask, with a margin: no keypoint there, hence no map point on an
+  // instrument that lies in front of the organ (inside its mask) and moves
+  // against it; direct alignment and the image-motion prior skip them too.
+  // false: --no-occluder-mask ablation. Without chroma there is no mask.
+  bool use_occluder_mask = true;
   // Bounded map.
   int max_keyframes = 48;          // <= kMaxKeyframes
   int max_map_points = 12000;      // <= kMaxMapPoints
@@ -148,6 +155,8 @@ struct TrackResult {
   int local_map = 0;              // map points projected into the predicted view
   bool ba_applied = false;        // a solved BA job was applied to the map at the start of this frame
   bool ba_submitted = false;      // a BA job was handed to the mapping side this frame
+  int occluder_pixels = -1;       // valid-mask pixels (1/2 resolution) removed as occluders; -1: no
+                                  // occluder mask this frame (no chroma, or use_occluder_mask off)
 };
 
 class TrackerImpl;
@@ -169,9 +178,11 @@ class Tracker {
   // after configure(), before start(); nullptr detaches. Not owned.
   void set_ba_channel(BaChannel* channel);
   void start();
-  // One frame: luma (Y plane, distorted image as captured, width x height).
-  // Allocates nothing.
-  TrackResult step(GrayView luma, int frame_index);
+  // One frame: luma (Y plane, distorted image as captured, width x height)
+  // and, optionally, its 4:2:0 chroma for the occluder mask
+  // (TrackerConfig::use_occluder_mask); empty chroma, or planes of another
+  // size: no occluder mask. Allocates nothing.
+  TrackResult step(GrayView luma, int frame_index, ChromaView chroma = {});
   void stop();
 
   // Diagnostics (tests, overlay; not for the hot path): copies the model

@@ -17,6 +17,7 @@
 #include "core/feature_set.h"
 #include "core/image_motion.h"
 #include "core/map.h"
+#include "core/occluder_mask.h"
 #include "core/orb_extractor.h"
 #include "core/orb_matcher.h"
 #include "core/pnp_ransac.h"
@@ -54,7 +55,7 @@ class TrackerImpl {
                    const SE3& T_camera_model_init);
   void start();
   void stop() { started_ = false; }
-  TrackResult step(GrayView luma, int frame_index);
+  TrackResult step(GrayView luma, int frame_index, ChromaView chroma);
   const TrackingMap& map() const { return map_; }
   void set_ba_channel(BaChannel* channel) { ba_channel_ = channel; }
 
@@ -99,6 +100,7 @@ class TrackerImpl {
   void fill_job(BaJob* job, bool global);
   int next_reloc_keyframe();
   void rank_reloc_keyframes();
+  int remove_occluders_from_valid(GrayView luma, ChromaView chroma);
   double now_ms() const;
   void lap(Stage s, double* t_last_ms, TrackResult* r) const;
 
@@ -111,7 +113,9 @@ class TrackerImpl {
   bool raster_valid_ = false;  // raster_ holds a render at raster_pose_
   SE3 raster_pose_;
   ValidMaskBuilder valid_mask_;
-  GrayView valid_view_;
+  OccluderMaskBuilder occluder_;  // near-neutral pixels (instruments) from chroma, at 1/2 like valid_mask_
+  std::vector<std::uint8_t> valid_without_occluders_;  // the valid mask minus the occluders (when any)
+  GrayView valid_view_;           // this frame's valid mask: valid_mask_'s, or valid_without_occluders_
   OrbExtractor orb_;
   OrbMatcher matcher_;
   FeatureGrid grid_;

@@ -42,6 +42,7 @@ struct CameraArgs {
   std::string camera, mesh, calibration, out;
   int ring_slots = 4;
   bool use_mask = true;
+  bool use_occluder_mask = true;
 };
 
 bool parse_args(Args args, CameraArgs* a) {
@@ -55,6 +56,7 @@ bool parse_args(Args args, CameraArgs* a) {
     else if (!std::strcmp(arg, "--out") && has_value) a->out = args[static_cast<std::size_t>(++i)];
     else if (!std::strcmp(arg, "--ring") && has_value) a->ring_slots = std::atoi(args[static_cast<std::size_t>(++i)]);
     else if (!std::strcmp(arg, "--no-mask")) a->use_mask = false;
+    else if (!std::strcmp(arg, "--no-occluder-mask")) a->use_occluder_mask = false;
     else {
       std::fprintf(stderr, "scopetrack: unknown or incomplete argument '%s'\n", arg);
       return false;
@@ -98,7 +100,7 @@ struct LiveLoop {
         break;
       }
       const std::int64_t t_got_ns = platform::monotonic_ns();
-      const TrackResult r = processor->step(in.frame.y, in.frame.index);
+      const TrackResult r = processor->step(in.frame);
       const std::int64_t t_done_ns = platform::monotonic_ns();
       // Latency from the sensor timestamp (CLOCK_MONOTONIC on V4L2) when it
       // is plausible, else from the hand-off.
@@ -232,6 +234,7 @@ int run_camera(Args argv) {
   tc.width = cal.width;
   tc.height = cal.height;
   tc.use_mask = args.use_mask;
+  tc.use_occluder_mask = args.use_occluder_mask;
   tc.now_ns = &platform::monotonic_ns;
   auto processor = std::make_unique<TrackerProcessor>();
   if (Status s = processor->configure(tc, mesh, CameraModel(cal.K, cal.distortion), cal.T_camera_model_init); !s) {

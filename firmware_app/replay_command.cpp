@@ -1,4 +1,4 @@
-// scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
+// scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
 //   [--ring N]:
 // replays a sequence through the tracker (hal/replay.h) into the output
 // folder. Exit status: 0 done, 1 the sequence or the replay failed (a clear
@@ -26,6 +26,7 @@ struct ReplayArgs {
   std::string sequence, out;
   bool realtime = false;
   bool use_mask = true;
+  bool use_occluder_mask = true;  // --no-occluder-mask: instruments stay in the valid mask (ablation)
   bool use_image_motion = true;  // --no-image-motion: constant-velocity prediction only, no
                                  // dead reckoning by direct alignment while lost, no confirmed
                                  // poses (ablation)
@@ -51,6 +52,8 @@ bool parse_args(Args args, ReplayArgs* a) {
       a->realtime = true;
     } else if (!std::strcmp(arg, "--no-mask")) {
       a->use_mask = false;
+    } else if (!std::strcmp(arg, "--no-occluder-mask")) {
+      a->use_occluder_mask = false;
     } else if (!std::strcmp(arg, "--no-image-motion")) {
       a->use_image_motion = false;
     } else if (!std::strcmp(arg, "--no-ba")) {
@@ -89,6 +92,7 @@ TrackerConfig tracker_config(const LoadedSequence& seq, const ReplayArgs& a) {
   c.width = seq.config.width;
   c.height = seq.config.height;
   c.use_mask = a.use_mask;
+  c.use_occluder_mask = a.use_occluder_mask;
   c.use_ba = a.use_ba;
   c.use_image_motion = a.use_image_motion;
   if (!a.shape_ba) c.w_shape = 0.0;
@@ -133,7 +137,8 @@ std::unique_ptr<StreamLink> start_stream_link(const ReplayArgs& a, const LoadedS
 int run_replay(Args argv) {
   ReplayArgs args;
   if (!parse_args(argv, &args)) {
-    std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba]"
+    std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask]"
+                 " [--no-image-motion] [--no-ba]"
                  " [--no-shape-ba] [--ba-lag N]"
                  " [--ring N]\n"
                  "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
@@ -169,7 +174,8 @@ int run_replay(Args argv) {
   opt.realtime = args.realtime;
   opt.progress = ::isatty(STDERR_FILENO) == 1;
   opt.ring_slots = args.ring_slots;
-  opt.summary_extra = {{"use_mask", args.use_mask ? 1.0 : 0.0}, {"use_ba", args.use_ba ? 1.0 : 0.0},
+  opt.summary_extra = {{"use_mask", args.use_mask ? 1.0 : 0.0},
+                       {"use_occluder_mask", args.use_occluder_mask ? 1.0 : 0.0}, {"use_ba", args.use_ba ? 1.0 : 0.0},
                        {"use_image_motion", args.use_image_motion ? 1.0 : 0.0},
                        {"w_shape", args.shape_ba ? TrackerConfig{}.w_shape : 0.0},
                        {"ba_lag_frames", args.ba_lag}, {"width", c.width}, {"height", c.height}};

@@ -7,6 +7,7 @@ Status TrackerProcessor::configure(const TrackerConfig& config, const Mesh& mesh
   stage_sum_ms_.fill(0.0);
   stage_runs_.fill(0);
   ba_submitted_ = ba_applied_ = 0;
+  occluder_frames_ = occluder_pixels_ = 0;
   use_ba_ = false;
   if (Status s = tracker_.configure(config, mesh, camera, T_camera_model_init); !s.ok()) return s;
   if (config.use_ba) {
@@ -27,8 +28,8 @@ void TrackerProcessor::stop() {
   if (use_ba_) mapping_.stop();
 }
 
-TrackResult TrackerProcessor::step(GrayView luma, int frame_index) {
-  const TrackResult r = tracker_.step(luma, frame_index);
+TrackResult TrackerProcessor::step(const FrameRef& frame) {
+  const TrackResult r = tracker_.step(frame.y, frame.index, ChromaView{frame.u, frame.v});
   for (std::size_t i = 0; i < stage_sum_ms_.size(); ++i) {
     if (r.times_ms[i] <= 0.0) continue;  // the stage did not run
     stage_sum_ms_[i] += r.times_ms[i];
@@ -36,6 +37,10 @@ TrackResult TrackerProcessor::step(GrayView luma, int frame_index) {
   }
   ba_submitted_ += r.ba_submitted ? 1 : 0;
   ba_applied_ += r.ba_applied ? 1 : 0;
+  if (r.occluder_pixels >= 0) {
+    ++occluder_frames_;
+    occluder_pixels_ += r.occluder_pixels;
+  }
   return r;
 }
 
@@ -45,6 +50,9 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
     const std::string name = to_string(static_cast<Stage>(i));
     fields->emplace_back("stage_" + name + "_mean_ms", stage_sum_ms_[i] / static_cast<double>(stage_runs_[i]));
   }
+  fields->emplace_back("occluder_mask_frames", static_cast<double>(occluder_frames_));
+  if (occluder_frames_ > 0)
+    fields->emplace_back("occluder_removed_px_mean", static_cast<double>(occluder_pixels_) / static_cast<double>(occluder_frames_));
   if (!use_ba_) return;
   fields->emplace_back("ba_jobs_submitted", static_cast<double>(ba_submitted_));
   fields->emplace_back("ba_jobs_applied", static_cast<double>(ba_applied_));

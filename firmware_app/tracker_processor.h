@@ -21,9 +21,10 @@ class TrackerProcessor : public FrameProcessor {
   Status configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
                    const SE3& T_camera_model_init);
   void start() override;
-  TrackResult step(GrayView luma, int frame_index) override;
+  TrackResult step(const FrameRef& frame) override;
   void stop() override;
-  // "stage_<name>_mean_ms" for every stage that ran, and the BA figures.
+  // "stage_<name>_mean_ms" for every stage that ran, the occluder mask's
+  // frames and mean share of the valid mask, and the BA figures.
   void append_summary(std::vector<std::pair<std::string, double>>* fields) const override;
 
  private:
@@ -33,6 +34,7 @@ class TrackerProcessor : public FrameProcessor {
   std::array<double, static_cast<int>(Stage::kCount)> stage_sum_ms_{};
   std::array<std::int64_t, static_cast<int>(Stage::kCount)> stage_runs_{};
   std::int64_t ba_submitted_ = 0, ba_applied_ = 0;
+  std::int64_t occluder_frames_ = 0, occluder_pixels_ = 0;  // frames with an occluder mask, valid pixels removed
 };
 
 }  // namespace st::app

@@ -82,7 +82,7 @@ struct TrackingLoop {
         read_error = true;  // the message is copied after the loop (copying allocates)
         return;
       }
-      const TrackResult r = processor->step(in.frame.y, in.frame.index);
+      const TrackResult r = processor->step(in.frame);
       const std::int64_t t_done_ns = platform::monotonic_ns();
       // As fast as possible, the capture runs ahead on purpose: a frame's
       // latency starts when the tracker could take it, not when it was queued.

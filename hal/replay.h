@@ -30,12 +30,14 @@
 namespace st {
 
 // What the tracking thread runs. start(), step() and stop() are called on
-// the tracking thread; step() must not allocate (it is counted).
+// the tracking thread; step() must not allocate (it is counted). step()
+// gets the whole frame: luma, and chroma unless the video is Cmono (the
+// tracker's occluder mask uses it).
 class FrameProcessor {
  public:
   virtual ~FrameProcessor() = default;
   virtual void start() = 0;
-  virtual TrackResult step(GrayView luma, int frame_index) = 0;
+  virtual TrackResult step(const FrameRef& frame) = 0;
   virtual void stop() = 0;
   // After stop(), on the calling thread: more numeric fields for
   // summary.json (e.g. mean stage times). May allocate.

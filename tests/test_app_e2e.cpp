@@ -197,6 +197,7 @@ TEST_CASE("app_e2e: 200 simulated frames replay with zero heap allocations on th
   REQUIRE_MESSAGE(track(dir / "seq", dir / "out", &err) == 0, err);
   CHECK(summary_number(dir / "out", "frames") == 200);
   CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);
+  CHECK(summary_number(dir / "out", "occluder_mask_frames") == 200);  // the replay hands chroma over
   CHECK(summary_number(dir / "out", "fps") > 0);
   CHECK(summary_number(dir / "out", "p99_latency_ms") > 0);
   CHECK(data_lines(dir / "out" / "frames.csv") == 201);

@@ -23,9 +23,11 @@ class OracleProcessor : public FrameProcessor {
  public:
   OracleProcessor(const std::vector<TimedPose>& gt, int lost_every) : gt_(gt), lost_every_(lost_every) {}
   void start() override { started_ = true; }
-  TrackResult step(GrayView luma, int frame) override {
+  TrackResult step(const FrameRef& f) override {
     TrackResult r;
-    luma_sum_ += luma(0, 0);
+    const int frame = f.index;
+    luma_sum_ += f.y(0, 0);
+    chroma_frames_ += f.u.empty() || f.v.empty() ? 0 : 1;
     const bool lost = lost_every_ > 0 && frame % lost_every_ == lost_every_ - 1;
     r.state = frame == 0 ? TrackState::kInitialised : lost ? TrackState::kLost : TrackState::kTracking;
     r.pose_valid = !lost;
@@ -38,6 +40,7 @@ class OracleProcessor : public FrameProcessor {
   bool started_ = false, stopped_ = false;
   int steps_ = 0;
   long luma_sum_ = 0;
+  int chroma_frames_ = 0;  // frames handed over with both chroma planes
 
  private:
   const std::vector<TimedPose>& gt_;
@@ -48,9 +51,9 @@ class OracleProcessor : public FrameProcessor {
 class LeakyProcessor : public OracleProcessor {
  public:
   using OracleProcessor::OracleProcessor;
-  TrackResult step(GrayView luma, int frame) override {
-    kept_.push_back(std::make_unique<int>(frame));
-    return OracleProcessor::step(luma, frame);
+  TrackResult step(const FrameRef& f) override {
+    kept_.push_back(std::make_unique<int>(f.index));
+    return OracleProcessor::step(f);
   }
   std::vector<std::unique_ptr<int>> kept_{};
 };
@@ -97,6 +100,7 @@ TEST_CASE("app_replay: 200 frames, every row written, zero allocations on the tr
   CHECK(oracle.stopped_);
   CHECK(oracle.steps_ == 200);
   CHECK(oracle.luma_sum_ > 0);  // the pixels reached the processor
+  CHECK(oracle.chroma_frames_ == 200);  // with their chroma (4:2:0 video)
   CHECK(stats->frames == 200);
   CHECK(stats->lost == 20);
   CHECK(stats->tracked == 180);

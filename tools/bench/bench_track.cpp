@@ -4,7 +4,8 @@
 // read between steps (not timed). The sequence is simulated on first use
 // (scopetrack-sim beside this binary, orbit 1280x720, 300 frames, cached in
 // the temp folder) unless --sequence DIR is given.
-//   scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask] [--log N]
+//   scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask]
+//                          [--no-occluder-mask] [--log N]
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -28,6 +29,7 @@ struct TrackArgs {
   int frames = 300;
   int log_frames = 0;  // per-frame diagnostics on stderr for the first N frames
   bool use_mask = true;
+  bool use_occluder_mask = true;
 };
 
 bool parse_track_args(const Options& opt, TrackArgs* a) {
@@ -40,6 +42,7 @@ bool parse_track_args(const Options& opt, TrackArgs* a) {
     else if (k == "--frames" && v) a->frames = std::atoi(opt.args[++i].c_str());
     else if (k == "--log" && v) a->log_frames = std::atoi(opt.args[++i].c_str());
     else if (k == "--no-mask") a->use_mask = false;
+    else if (k == "--no-occluder-mask") a->use_occluder_mask = false;
     else return false;
   }
   return a->frames > 0;
@@ -85,6 +88,7 @@ Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, cons
   cfg.width = seq.config.width;
   cfg.height = seq.config.height;
   cfg.use_mask = a.use_mask;
+  cfg.use_occluder_mask = a.use_occluder_mask;
   cfg.now_ns = &platform::monotonic_ns;
   auto tracker = std::make_unique<Tracker>();
   const CameraModel cam(seq.config.K, seq.config.distortion);
@@ -100,7 +104,7 @@ Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, cons
   while (reader.read_frame(&f) == ReadResult::kFrame && run.step_ms.size() < run.step_ms.capacity()) {
     const std::uint64_t a0 = platform::thread_allocation_count();
     const double t0 = now_ms();
-    const TrackResult r = tracker->step(f.y, f.index);
+    const TrackResult r = tracker->step(f.y, f.index, ChromaView{f.u, f.v});
     run.step_ms.push_back(now_ms() - t0);
     allocs += platform::thread_allocation_count() - a0;
     run.stages.push_back(r.times_ms);
@@ -139,7 +143,7 @@ void report_stages(const Options& opt, const TrackRun& run) {
 int bench_track(const Options& opt) {
   TrackArgs a;
   if (!parse_track_args(opt, &a)) {
-    std::fprintf(stderr, "usage: scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask] [--log N]\n");
+    std::fprintf(stderr, "usage: scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask] [--no-occluder-mask] [--log N]\n");
     return 2;
   }
   std::filesystem::path dir = a.sequence;
