@@ -210,9 +210,10 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
     return r;  // defined degraded state: lost, no pose
   }
   const bool ba_applied = apply_ba();  // safe point: nothing of this frame uses the map yet
-  valid_view_ = valid_mask_.build(luma);
+  valid_view_ = valid_scene_ = valid_mask_.build(luma);
   const double t_valid = now_ms();
-  const int occluder_pixels = remove_occluders_from_valid(luma, chroma);
+  bool occluder_refused = false;
+  const int occluder_pixels = remove_occluders_from_valid(luma, chroma, &occluder_refused);
   const double t_occluder = now_ms();
   if (!initialised_) {
     r = initialise(luma, frame_index);
@@ -224,6 +225,7 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
   r.times_ms[static_cast<int>(Stage::kPyramid)] += t_valid - t0;  // valid mask (and BA apply)
   if (occluder_pixels >= 0) r.times_ms[static_cast<int>(Stage::kOccluder)] = t_occluder - t_valid;
   r.occluder_pixels = occluder_pixels;
+  r.occluder_refused = occluder_refused;
   if (r.keyframe) ba_window_pending_ = true;
   if (r.state == TrackState::kRelocalised && config_.ba_global_after_reloc) ba_global_pending_ = true;
   if (r.state == TrackState::kInitialised) ba_window_pending_ = ba_global_pending_ = false;  // a fresh map
@@ -238,11 +240,31 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
 // The occluder mask of this frame taken out of valid_view_ (which then
 // views valid_without_occluders_). Returns the valid pixels removed, -1
 // when there is no occluder mask (off, no chroma, or chroma of another size).
-int TrackerImpl::remove_occluders_from_valid(GrayView luma, ChromaView chroma) {
+int TrackerImpl::remove_occluders_from_valid(GrayView luma, ChromaView chroma, bool* refused) {
   if (!config_.use_occluder_mask || chroma.empty() || valid_view_.empty()) return -1;
   const GrayView occluder = occluder_.build(luma, chroma.u, chroma.v);
   if (occluder.empty()) return -1;
   if (occluder_.candidate_pixels() == 0) return 0;  // then the mask is empty
+  // A mask over most of the organ is the organ's own colour (a pale organ,
+  // a grey texture, a monochrome render), not an instrument in front of it:
+  // taking it out would leave nothing to track. Judged on the last render;
+  // before the first one (frame 0) the mask is not used.
+  if (!raster_valid_) return 0;
+  const GrayView organ = raster_.mask();
+  if (organ.width != occluder.width || organ.height != occluder.height) return 0;
+  long organ_px = 0, flagged_on_organ = 0;
+  for (int y = 0; y < organ.height; ++y) {
+    const std::uint8_t* o = occluder.row(y);
+    const std::uint8_t* g = organ.row(y);
+    for (int x = 0; x < organ.width; ++x) {
+      organ_px += g[x] != 0;
+      flagged_on_organ += (g[x] != 0) & (o[x] != 0);
+    }
+  }
+  if (organ_px == 0 || flagged_on_organ > kMaxOccludedOrganShare * static_cast<double>(organ_px)) {
+    *refused = true;
+    return 0;
+  }
   ImageView<std::uint8_t> out(valid_without_occluders_.data(), valid_view_.width, valid_view_.height,
                               valid_view_.width);
   const int removed = remove_occluders(valid_view_, occluder, out);

@@ -157,6 +157,7 @@ struct TrackResult {
   bool ba_submitted = false;      // a BA job was handed to the mapping side this frame
   int occluder_pixels = -1;       // valid-mask pixels (1/2 resolution) removed as occluders; -1: no
                                   // occluder mask this frame (no chroma, or use_occluder_mask off)
+  bool occluder_refused = false;  // the mask covered most of the organ (its own colour): not used
 };
 
 class TrackerImpl;

@@ -100,7 +100,7 @@ class TrackerImpl {
   void fill_job(BaJob* job, bool global);
   int next_reloc_keyframe();
   void rank_reloc_keyframes();
-  int remove_occluders_from_valid(GrayView luma, ChromaView chroma);
+  int remove_occluders_from_valid(GrayView luma, ChromaView chroma, bool* refused);
   double now_ms() const;
   void lap(Stage s, double* t_last_ms, TrackResult* r) const;
 
@@ -115,7 +115,11 @@ class TrackerImpl {
   ValidMaskBuilder valid_mask_;
   OccluderMaskBuilder occluder_;  // near-neutral pixels (instruments) from chroma, at 1/2 like valid_mask_
   std::vector<std::uint8_t> valid_without_occluders_;  // the valid mask minus the occluders (when any)
+  // More of the organ's last render than this flagged: the organ's own
+  // colour, not an instrument; the mask is not used that frame.
+  static constexpr double kMaxOccludedOrganShare = 0.5;
   GrayView valid_view_;           // this frame's valid mask: valid_mask_'s, or valid_without_occluders_
+  GrayView valid_scene_;          // valid_mask_'s, occluders kept: the whole-view motion prior's mask
   OrbExtractor orb_;
   OrbMatcher matcher_;
   FeatureGrid grid_;

@@ -277,7 +277,11 @@ SE3 TrackerImpl::motion_prior(GrayView luma, const SE3& T_reference, const SE3& 
   const Mat3 R = T_predicted.rotation() * T_reference.rotation().transpose();
   guess.roll_rad = std::atan2(R(1, 0) - R(0, 1), R(0, 0) + R(1, 1));
   ViewMotion measured;
-  if (!config_.use_image_motion || !motion_.update(luma, valid_view_, centre, guess, &measured)) return T_predicted;
+  // The whole view, neutral surfaces included: the occluder mask serves the
+  // organ's features and alignment, and taking grey background (abdominal
+  // wall, a pale neighbour organ) out of this prior only changed its
+  // answers (photo-textured invivo seed 2: 0.7 -> 44.7 % lost).
+  if (!config_.use_image_motion || !motion_.update(luma, valid_scene_, centre, guess, &measured)) return T_predicted;
   const Vec2 residual = measured.shift_px - guess.shift_px;
   const double residual_roll = measured.roll_rad - guess.roll_rad;
   const double reach = std::hypot(std::max(K_.cx, K_.width - K_.cx), std::max(K_.cy, K_.height - K_.cy));

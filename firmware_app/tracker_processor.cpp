@@ -7,7 +7,7 @@ Status TrackerProcessor::configure(const TrackerConfig& config, const Mesh& mesh
   stage_sum_ms_.fill(0.0);
   stage_runs_.fill(0);
   ba_submitted_ = ba_applied_ = 0;
-  occluder_frames_ = occluder_pixels_ = 0;
+  occluder_frames_ = occluder_pixels_ = occluder_refused_ = 0;
   use_ba_ = false;
   if (Status s = tracker_.configure(config, mesh, camera, T_camera_model_init); !s.ok()) return s;
   if (config.use_ba) {
@@ -41,6 +41,7 @@ TrackResult TrackerProcessor::step(const FrameRef& frame) {
     ++occluder_frames_;
     occluder_pixels_ += r.occluder_pixels;
   }
+  occluder_refused_ += r.occluder_refused ? 1 : 0;
   return r;
 }
 
@@ -51,6 +52,7 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
     fields->emplace_back("stage_" + name + "_mean_ms", stage_sum_ms_[i] / static_cast<double>(stage_runs_[i]));
   }
   fields->emplace_back("occluder_mask_frames", static_cast<double>(occluder_frames_));
+  fields->emplace_back("occluder_refused_frames", static_cast<double>(occluder_refused_));
   if (occluder_frames_ > 0)
     fields->emplace_back("occluder_removed_px_mean", static_cast<double>(occluder_pixels_) / static_cast<double>(occluder_frames_));
   if (!use_ba_) return;

@@ -34,7 +34,7 @@ class TrackerProcessor : public FrameProcessor {
   std::array<double, static_cast<int>(Stage::kCount)> stage_sum_ms_{};
   std::array<std::int64_t, static_cast<int>(Stage::kCount)> stage_runs_{};
   std::int64_t ba_submitted_ = 0, ba_applied_ = 0;
-  std::int64_t occluder_frames_ = 0, occluder_pixels_ = 0;  // frames with an occluder mask, valid pixels removed
+  std::int64_t occluder_frames_ = 0, occluder_pixels_ = 0, occluder_refused_ = 0;  // frames with an occluder mask, valid pixels removed
 };
 
 }  // namespace st::app

@@ -15,9 +15,11 @@
 
 #include "core/image.h"
 #include "core/occluder_mask.h"
+#include "core/tracker.h"
 #include "hal/y4m_reader.h"
 #include "support/alloc_guard.h"
 #include "support/support.h"
+#include "support/track_scene.h"
 #include "tools/sim/renderer.h"
 #include "tools/sim/sim_run.h"
 
@@ -374,4 +376,45 @@ TEST_CASE("occluder mask: the simulator's instrument is flagged, its organ is no
     CHECK(share(s.organ_inner_flagged, s.organ_inner) < 0.01);
     CHECK(share(s.organ_flagged, s.organ) < 0.03);  // the margin of the flagged neighbour organ
   }
+}
+
+// A grey organ (a pale organ, a grey texture, a monochrome render) is not an
+// instrument: where the mask covers most of the organ's last render the
+// tracker leaves it out, and tracks exactly as without chroma.
+TEST_CASE("occluder mask: a neutral organ is not taken for an instrument (tracker)" *
+          doctest::timeout(test::budget_s(120))) {
+  const Mesh mesh = test::load_liver_for_tracking();
+  const Pinhole K = test::track_test_pinhole();
+  const std::vector<SE3> poses = test::liver_orbit(mesh, 20);
+  test::TrackSceneRenderer renderer;
+  renderer.configure(mesh, K);
+  Image<std::uint8_t> u((K.width + 1) / 2, (K.height + 1) / 2), v(u.width(), u.height());
+  u.fill(128);
+  v.fill(128);  // grey everywhere
+  TrackerConfig cfg;
+  cfg.width = K.width;
+  cfg.height = K.height;
+  cfg.use_ba = false;
+  Tracker with_chroma, without;
+  for (Tracker* t : {&with_chroma, &without}) {
+    REQUIRE(t->configure(cfg, mesh, CameraModel(K, Distortion{}), poses[0]).ok());
+    t->start();
+  }
+  Image<std::uint8_t> frame;
+  int refused = 0, posed = 0;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    renderer.render(poses[i], &frame);
+    const TrackResult a = with_chroma.step(frame.view(), static_cast<int>(i), ChromaView{u.cview(), v.cview()});
+    const TrackResult b = without.step(frame.view(), static_cast<int>(i));
+    CAPTURE(i);
+    CHECK(a.occluder_pixels == 0);  // nothing taken out
+    refused += a.occluder_refused ? 1 : 0;
+    REQUIRE(a.pose_valid == b.pose_valid);
+    if (a.pose_valid) {
+      ++posed;
+      CHECK((a.T_camera_model.matrix() - b.T_camera_model.matrix()).cwiseAbs().maxCoeff() == 0.0);
+    }
+  }
+  CHECK(refused >= static_cast<int>(poses.size()) - 1);  // every frame after the first render
+  CHECK(posed >= static_cast<int>(poses.size()) - 1);
 }
