@@ -131,7 +131,7 @@ TEST_CASE("app_e2e: tissue from the real liver photo (orbit, 640x360) is tracked
 // from chroma (core/occluder_mask.h) keeps them out: 0 lost, TRE 0.73 /
 // 2.69 px; without it (the control) 23.7 % lost, 0.79 / 15.6 px.
 TEST_CASE("app_e2e: an instrument over smooth tissue is masked by its colour (photo manipulation, 640x360)" *
-          doctest::timeout(test::budget_s(300))) {
+          doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_instrument");
   simulate(dir / "seq", 300, "640x360", 1, "manipulation",
            " --texture " + test::shell_quoted(test::shared_data("real/laparoscopy_liver_1080p.y4m")));

@@ -362,7 +362,7 @@ double share(long part, long whole) { return whole > 0 ? static_cast<double>(par
 // the margin of the pale blue-white neighbour organ (a gallbladder), which
 // is neutral and flagged, where it borders the organ.
 TEST_CASE("occluder mask: the simulator's instrument is flagged, its organ is not (default and photo texture)" *
-          doctest::timeout(test::budget_s(120))) {
+          doctest::timeout(test::budget_s(120)) * doctest::test_suite(test::kLongSuite)) {
   const std::string photo = test::shared_data("real/laparoscopy_liver_1080p.y4m").string();
   for (const std::string& texture : {std::string(), photo}) {
     const LabelShares s = score_sim(sim::ScenarioKind::Manipulation, 60, texture);
