@@ -2,7 +2,7 @@
 // ground truth (docs/sequence-format.md).
 //   scopetrack-sim --scenario NAME --out DIR [--frames N] [--size WxH]
 //                  [--seed S] [--mesh FILE] [--field-stop on|off] [--organ-detail F]
-//                  [--shutter F] [--texture FILE.y4m] [--texture-scale PX_PER_MM]
+//                  [--shutter F] [--light F] [--texture FILE.y4m] [--texture-scale PX_PER_MM]
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -20,6 +20,7 @@ void usage() {
                "                      [--seed S (1)] [--mesh FILE.ply|stl] [--field-stop on|off]\n"
                "                      [--organ-detail F (1; lower = smoother tissue)]\n"
                "                      [--shutter F (0.5 of the frame interval; 0 = no motion blur)]\n"
+               "                      [--light F (1: the scope light's power; lower = a dimmer, noisier scene)]\n"
                "                      [--texture FILE.y4m (organ texture from a photo's first frame)]\n"
                "                      [--texture-scale PX_PER_MM (4: photo pixels per mm of tissue)]\n");
 }
@@ -61,6 +62,9 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
     } else if (a == "--shutter") {
       if (!st::parse_double_in(v, 0.0, 1.0, &o->shutter))
         return "--shutter wants the open fraction of the frame interval, 0..1 (0: no motion blur)";
+    } else if (a == "--light") {
+      if (!st::parse_double_in(v, 0.05, 4.0, &o->light))
+        return "--light wants the scope light's power relative to the default, 0.05..4";
     } else if (a == "--texture") {
       o->texture_file = std::string(v);
     } else if (a == "--texture-scale") {

@@ -30,6 +30,10 @@ struct SimOptions {
   int field_stop = -1;              // -1: scenario default (invivo only), 0 off, 1 on
   double organ_detail = 1.0;        // RenderSettings::organ_detail (1: calibrated on the real liver)
   double shutter = kDefaultShutter; // RenderSettings::shutter (0: no motion blur)
+  // The scope light's power relative to the default (RenderSettings::exposure
+  // times this): below 1 a dimmer scene, whose sensor noise stays that of the
+  // sensor, so the signal-to-noise ratio falls as on a real camera.
+  double light = 1.0;
   std::filesystem::path texture_file;  // a Y4M photo for the organ's texture; empty: procedural
   double texture_px_per_mm = PhotoTexture::kDefaultPxPerMm;
   bool progress = false;            // progress bar on stderr
