@@ -157,8 +157,7 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   smooth_tiles_.assign(static_cast<std::size_t>(ceil_div(width, ImagePyramid::kSmoothTilePx)) *
                            ceil_div(height, ImagePyramid::kSmoothTilePx), 0);
   rank_count_.assign(cap + 1, 0);
-  // Relaxed cascade: halfway between strict and relaxed, then relaxed.
-  relaxed_cascade_ = {(c.fast_threshold_strict + c.fast_threshold_relaxed) / 2, c.fast_threshold_relaxed};
+  set_threshold_scale(1.f);
   {
     const std::size_t scells = static_cast<std::size_t>(ceil_div(width, c.min_spread_cell_px)) *
                                ceil_div(height, c.min_spread_cell_px);
@@ -170,6 +169,17 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   cell_need_.assign(static_cast<std::size_t>(ceil_div(height, c.threshold_cell_px) + 1) *
                         (ceil_div(width, kBlock) + 1), 0);
   return Status::Ok();
+}
+
+void OrbExtractor::set_threshold_scale(float s) {
+  threshold_scale_ = std::isnan(s) ? 1.f : std::clamp(s, 0.f, 1.f);  // 0: the floors
+  const auto scaled = [&](int t, int floor) {
+    return std::min(t, std::max(floor, static_cast<int>(std::lround(static_cast<float>(t) * threshold_scale_))));
+  };
+  strict_threshold_ = scaled(config_.fast_threshold_strict, kMinStrictThreshold);
+  relaxed_threshold_ = std::min(strict_threshold_, scaled(config_.fast_threshold_relaxed, kMinRelaxedThreshold));
+  // Relaxed cascade: halfway between strict and relaxed, then relaxed.
+  relaxed_cascade_ = {(strict_threshold_ + relaxed_threshold_) / 2, relaxed_threshold_};
 }
 
 void OrbExtractor::prepare_masks(GrayView organ, GrayView valid) {
@@ -632,7 +642,7 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
     // at the threshold where few pixels pass the cheap pre-test.
     const int chunks = ceil_div(img.width, kBlock);
     const int capacity = static_cast<int>(fast_out_.size());
-    const int n_strict = fast_.detect(img, config_.fast_threshold_strict, config_.edge_border_px,
+    const int n_strict = fast_.detect(img, strict_threshold_, config_.edge_border_px,
                                       use_chunks_ ? chunk_ok_.data() : nullptr, chunks,
                                       fast_out_.data(), capacity);
     int n_kept = filter_strict(k, n_strict);
@@ -641,7 +651,7 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
     // in a cascade of descending thresholds: each pass scans only the
     // spreading cells the corners found so far leave open, and adds corners
     // scoring at most the previous threshold.
-    int prev_threshold = config_.fast_threshold_strict;
+    int prev_threshold = strict_threshold_;
     for (const int t : relaxed_cascade_) {
       if (t >= prev_threshold) continue;
       if (!close_spread_cells(k, n_kept, 2 * level_target_[k])) break;

@@ -81,6 +81,18 @@ class OrbExtractor {
   bool extract(GrayView image, GrayView organ_mask_or_empty, GrayView valid_mask_or_empty,
                FeatureSet& out);
 
+  // Scales the FAST thresholds of the next extract() calls by s (clamped to
+  // [0, 1]; NaN: 1): the strict and relaxed thresholds become round(t * s), at least
+  // kMinStrictThreshold and kMinRelaxedThreshold. For dim frames, where every
+  // intensity difference shrinks with the light (see TrackerConfig::
+  // fast_reference_luma). 1 (the default) = the configured thresholds.
+  void set_threshold_scale(float s);
+  float threshold_scale() const { return threshold_scale_; }
+  int strict_threshold() const { return strict_threshold_; }    // in use
+  int relaxed_threshold() const { return relaxed_threshold_; }  // in use
+  static constexpr int kMinStrictThreshold = 5;
+  static constexpr int kMinRelaxedThreshold = 2;
+
   const OrbConfig& config() const { return config_; }
   const ImagePyramid& pyramid() const { return pyramid_; }
   const OrbFrameStats& stats() const { return stats_; }
@@ -138,6 +150,8 @@ class OrbExtractor {
   std::vector<std::uint8_t> spread_open_;    // per spreading cell: a relaxed corner could still be kept
   std::vector<std::uint8_t> spread_open_chunks_;  // per 16-pixel chunk of one row: touches an open cell
   std::array<int, 2> relaxed_cascade_{};     // thresholds of the relaxed passes, descending
+  float threshold_scale_ = 1.f;
+  int strict_threshold_ = 20, relaxed_threshold_ = 7;  // the configured ones, scaled
   int relaxed_cell_px_ = 0;                  // spreading cell size of the closed map (0: all open)
   GrayView organ_;                           // organ mask of this frame with the margin (or empty)
   GrayView valid_;                           // valid mask of this frame (or empty)

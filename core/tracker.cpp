@@ -70,6 +70,8 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
       !(c.anchor_min_inlier_ratio >= 0 && c.anchor_min_inlier_ratio <= 1))
     return err("confirmed_min_inlier_ratio, confirmed_keyframe_min_anchored and anchor_min_inlier_ratio must be in [0, 1]");
   if (c.ba_lag_frames < 0 || c.ba_lag_frames > 1000) return err("ba_lag_frames outside [0, 1000]");
+  if (!(c.fast_reference_luma >= 0 && c.fast_reference_luma <= 255))
+    return err("fast_reference_luma must be in [0, 255] (0: off)");
   if (!(c.confirm_agreement_px >= 0 && c.confirm_agreement_px <= 1000))
     return err("confirm_agreement_px must be in [0, 1000]");
   if (!(c.max_rms_px > 0) || !(c.max_jump_deg > 0) || !(c.max_jump_mm > 0))

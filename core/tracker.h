@@ -55,6 +55,15 @@ struct TrackerConfig {
   // contour was. On smooth tissue such keypoints are a large share and the
   // map drifts until tracking is lost (README, "the organ's outline").
   bool mask_patch_inside = true;
+  // Dim video: FAST thresholds are intensity differences, and every
+  // difference shrinks with the light (gamma-encoded luma above black scales
+  // with it). A frame whose median luma over the organ (the valid image
+  // when there is no organ mask) is below this has its FAST thresholds
+  // scaled by (median - 16) / (fast_reference_luma - 16), down to
+  // OrbExtractor's floors (5 strict, 2 relaxed): the features of a dim
+  // frame are those of the same scene lit brighter. At or above it, the
+  // configured thresholds (ORB-SLAM's 20 / 7). 0 (or anything up to 16): off.
+  double fast_reference_luma = 80.0;
   // Occluders: when step() is given chroma, near-neutral pixels (surgical
   // instruments: steel, black/grey plastic; core/occluder_mask.h) leave the
   // valid mask, with a margin: no keypoint there, hence no map point on an
@@ -158,6 +167,7 @@ struct TrackResult {
   int occluder_pixels = -1;       // valid-mask pixels (1/2 resolution) removed as occluders; -1: no
                                   // occluder mask this frame (no chroma, or use_occluder_mask off)
   bool occluder_refused = false;  // the mask covered most of the organ (its own colour): not used
+  float fast_threshold_scale = 1.f;  // FAST thresholds scaled for a dim frame (fast_reference_luma)
 };
 
 class TrackerImpl;

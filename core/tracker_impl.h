@@ -101,6 +101,7 @@ class TrackerImpl {
   int next_reloc_keyframe();
   void rank_reloc_keyframes();
   int remove_occluders_from_valid(GrayView luma, ChromaView chroma, bool* refused);
+  float fast_threshold_scale(GrayView organ) const;
   double now_ms() const;
   void lap(Stage s, double* t_last_ms, TrackResult* r) const;
 

@@ -29,6 +29,8 @@ constexpr double kReuseRenderPx = 8.0;
 bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
   const GrayView organ = with_organ_mask && config_.use_mask && raster_valid_ ? raster_.mask() : GrayView{};
   FeatureSet& f = *features_;
+  orb_.set_threshold_scale(fast_threshold_scale(organ));
+  r->fast_threshold_scale = orb_.threshold_scale();
   if (!orb_.extract(luma, organ, valid_view_, f)) f.clear();
   for (int k = 0; k < f.count; ++k) {
     const Keypoint& kp = f.keypoints[static_cast<std::size_t>(k)];
@@ -42,6 +44,34 @@ bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
   grid_.build(f);
   r->features = f.count;
   return f.count > 0;
+}
+
+// The FAST threshold scale of this frame (TrackerConfig::fast_reference_luma):
+// the median block-mean luma over the valid mask and, if given, the organ
+// mask (every second mask pixel each way), above video black (16), over the
+// reference's. 1 when off, at or above the reference, or with no pixel.
+float TrackerImpl::fast_threshold_scale(GrayView organ) const {
+  constexpr int kBlack = 16;
+  if (!(config_.fast_reference_luma > kBlack) || valid_view_.empty()) return 1.f;
+  const GrayView means = valid_mask_.block_means();
+  if (means.width != valid_view_.width || means.height != valid_view_.height) return 1.f;
+  std::array<int, 256> hist{};
+  int n = 0;
+  for (int y = 0; y < means.height; y += 2) {
+    const std::uint8_t* m = means.row(y);
+    const std::uint8_t* v = valid_view_.row(y);
+    const std::uint8_t* o = organ.empty() ? nullptr : organ.row(y * organ.height / means.height);
+    for (int x = 0; x < means.width; x += 2) {
+      if (!v[x] || (o && !o[x * organ.width / means.width])) continue;
+      ++hist[m[x]];
+      ++n;
+    }
+  }
+  if (n == 0) return 1.f;
+  int median = 0;
+  for (int acc = 0; median < 255 && (acc += hist[static_cast<std::size_t>(median)]) <= n / 2;) ++median;
+  const double s = static_cast<double>(median - kBlack) / (config_.fast_reference_luma - kBlack);
+  return static_cast<float>(std::clamp(s, 0.0, 1.0));
 }
 
 // Projects every alive map point at T_camera_model into the local map

@@ -40,6 +40,8 @@ class ValidMaskBuilder {
   GrayView build(GrayView frame);
 
   GrayView mask() const { return GrayView(mask_.data(), mask_w_, mask_h_, mask_w_); }
+  // The last frame's mean luma per mask pixel (downscale x downscale blocks).
+  GrayView block_means() const { return GrayView(mean_.data(), mask_w_, mask_h_, mask_w_); }
   int black_level() const { return black_level_; }        // last frame, luma
   int highlight_threshold() const { return highlight_thr_; }  // last frame, luma
   int highlight_pixels() const { return highlight_pixels_; }  // at mask resolution, before dilation

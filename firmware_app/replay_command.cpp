@@ -1,5 +1,5 @@
 // scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
-//   [--ring N]:
+//   [--fast-reference-luma L] [--ring N]:
 // replays a sequence through the tracker (hal/replay.h) into the output
 // folder. Exit status: 0 done, 1 the sequence or the replay failed (a clear
 // message on stderr; the output written so far stays), 2 bad command line.
@@ -33,6 +33,7 @@ struct ReplayArgs {
   bool use_ba = true;       // --no-ba: no bundle adjustment (tracking and mesh-depth points only)
   bool shape_ba = true;     // --no-shape-ba: BA with w_shape = 0
   int ba_lag = 0;           // --ba-lag N: deterministic BA hand-back (TrackerConfig::ba_lag_frames)
+  double fast_reference_luma = TrackerConfig{}.fast_reference_luma;  // --fast-reference-luma L (0: off, the ablation)
   int ring_slots = 6;
   std::string stream;           // --stream ENDPOINT: serve consoles (firmware_app/stream_link.h)
   int stream_wait = 0;          // --stream-wait N: start once N consoles are connected
@@ -67,6 +68,13 @@ bool parse_args(Args args, ReplayArgs* a) {
         return false;
       }
       a->ba_lag = static_cast<int>(lag);
+    } else if (!std::strcmp(arg, "--fast-reference-luma") && has_value) {
+      long long luma = 0;
+      if (!st::parse_int64_in(args[static_cast<std::size_t>(++i)], 0, 255, &luma)) {
+        std::fprintf(stderr, "scopetrack: --fast-reference-luma takes a luma in 0..255 (0: off)\n");
+        return false;
+      }
+      a->fast_reference_luma = static_cast<double>(luma);
     } else if (!std::strcmp(arg, "--ring") && has_value) {
       a->ring_slots = std::atoi(args[static_cast<std::size_t>(++i)]);
     } else if (!std::strcmp(arg, "--stream") && has_value) {
@@ -97,6 +105,7 @@ TrackerConfig tracker_config(const LoadedSequence& seq, const ReplayArgs& a) {
   c.use_image_motion = a.use_image_motion;
   if (!a.shape_ba) c.w_shape = 0.0;
   c.ba_lag_frames = a.ba_lag;
+  c.fast_reference_luma = a.fast_reference_luma;
   c.now_ns = &platform::monotonic_ns;
   return c;
 }
@@ -139,7 +148,7 @@ int run_replay(Args argv) {
   if (!parse_args(argv, &args)) {
     std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask]"
                  " [--no-image-motion] [--no-ba]"
-                 " [--no-shape-ba] [--ba-lag N]"
+                 " [--no-shape-ba] [--ba-lag N] [--fast-reference-luma L]"
                  " [--ring N]\n"
                  "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
     return 2;
@@ -178,7 +187,8 @@ int run_replay(Args argv) {
                        {"use_occluder_mask", args.use_occluder_mask ? 1.0 : 0.0}, {"use_ba", args.use_ba ? 1.0 : 0.0},
                        {"use_image_motion", args.use_image_motion ? 1.0 : 0.0},
                        {"w_shape", args.shape_ba ? TrackerConfig{}.w_shape : 0.0},
-                       {"ba_lag_frames", args.ba_lag}, {"width", c.width}, {"height", c.height}};
+                       {"ba_lag_frames", args.ba_lag}, {"fast_reference_luma", args.fast_reference_luma},
+                       {"width", c.width}, {"height", c.height}};
   auto stats = run_replay(seq.value(), *processor, opt);
   if (!stats) {
     std::fprintf(stderr, "scopetrack: %s\n", stats.message().c_str());

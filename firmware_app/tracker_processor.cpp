@@ -1,5 +1,7 @@
 #include "firmware_app/tracker_processor.h"
 
+#include <algorithm>
+
 namespace st::app {
 
 Status TrackerProcessor::configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
@@ -8,6 +10,8 @@ Status TrackerProcessor::configure(const TrackerConfig& config, const Mesh& mesh
   stage_runs_.fill(0);
   ba_submitted_ = ba_applied_ = 0;
   occluder_frames_ = occluder_pixels_ = occluder_refused_ = 0;
+  dim_frames_ = 0;
+  min_fast_scale_ = 1.0;
   use_ba_ = false;
   if (Status s = tracker_.configure(config, mesh, camera, T_camera_model_init); !s.ok()) return s;
   if (config.use_ba) {
@@ -42,6 +46,10 @@ TrackResult TrackerProcessor::step(const FrameRef& frame) {
     occluder_pixels_ += r.occluder_pixels;
   }
   occluder_refused_ += r.occluder_refused ? 1 : 0;
+  if (r.fast_threshold_scale < 1.f) {
+    ++dim_frames_;
+    min_fast_scale_ = std::min(min_fast_scale_, static_cast<double>(r.fast_threshold_scale));
+  }
   return r;
 }
 
@@ -55,6 +63,8 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
   fields->emplace_back("occluder_refused_frames", static_cast<double>(occluder_refused_));
   if (occluder_frames_ > 0)
     fields->emplace_back("occluder_removed_px_mean", static_cast<double>(occluder_pixels_) / static_cast<double>(occluder_frames_));
+  fields->emplace_back("dim_frames", static_cast<double>(dim_frames_));
+  fields->emplace_back("min_fast_threshold_scale", min_fast_scale_);
   if (!use_ba_) return;
   fields->emplace_back("ba_jobs_submitted", static_cast<double>(ba_submitted_));
   fields->emplace_back("ba_jobs_applied", static_cast<double>(ba_applied_));

@@ -24,7 +24,8 @@ class TrackerProcessor : public FrameProcessor {
   TrackResult step(const FrameRef& frame) override;
   void stop() override;
   // "stage_<name>_mean_ms" for every stage that ran, the occluder mask's
-  // frames and mean share of the valid mask, and the BA figures.
+  // frames and mean share of the valid mask, the dim frames (FAST
+  // thresholds scaled down) and their smallest scale, and the BA figures.
   void append_summary(std::vector<std::pair<std::string, double>>* fields) const override;
 
  private:
@@ -35,6 +36,8 @@ class TrackerProcessor : public FrameProcessor {
   std::array<std::int64_t, static_cast<int>(Stage::kCount)> stage_runs_{};
   std::int64_t ba_submitted_ = 0, ba_applied_ = 0;
   std::int64_t occluder_frames_ = 0, occluder_pixels_ = 0, occluder_refused_ = 0;  // frames with an occluder mask, valid pixels removed
+  std::int64_t dim_frames_ = 0;    // frames whose FAST thresholds were scaled down (TrackerConfig::fast_reference_luma)
+  double min_fast_scale_ = 1.0;    // the smallest scale
 };
 
 }  // namespace st::app
