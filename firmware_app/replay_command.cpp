@@ -44,6 +44,13 @@ struct ReplayArgs {
 bool parse_args(Args args, ReplayArgs* a) {
   const int argc = static_cast<int>(args.size());
   if (argc > 0) a->sequence = args[0];
+  // The value after option i as a whole number in [lo, hi]; false (with
+  // what it wants said) otherwise.
+  const auto int_value = [&](int* i, long long lo, long long hi, const char* wants, long long* out) {
+    if (st::parse_int64_in(args[static_cast<std::size_t>(++*i)], lo, hi, out)) return true;
+    std::fprintf(stderr, "scopetrack: %s takes %s\n", args[static_cast<std::size_t>(*i - 1)], wants);
+    return false;
+  };
   for (int i = 1; i < argc; ++i) {
     const char* arg = args[static_cast<std::size_t>(i)];
     const bool has_value = i + 1 < argc;
@@ -63,17 +70,11 @@ bool parse_args(Args args, ReplayArgs* a) {
       a->shape_ba = false;
     } else if (!std::strcmp(arg, "--ba-lag") && has_value) {
       long long lag = 0;
-      if (!st::parse_int64_in(args[static_cast<std::size_t>(++i)], 1, 1000, &lag)) {
-        std::fprintf(stderr, "scopetrack: --ba-lag takes a whole number of frames in 1..1000\n");
-        return false;
-      }
+      if (!int_value(&i, 1, 1000, "a whole number of frames in 1..1000", &lag)) return false;
       a->ba_lag = static_cast<int>(lag);
     } else if (!std::strcmp(arg, "--fast-reference-luma") && has_value) {
       long long luma = 0;
-      if (!st::parse_int64_in(args[static_cast<std::size_t>(++i)], 0, 255, &luma)) {
-        std::fprintf(stderr, "scopetrack: --fast-reference-luma takes a luma in 0..255 (0: off)\n");
-        return false;
-      }
+      if (!int_value(&i, 0, 255, "a luma in 0..255 (0: off)", &luma)) return false;
       a->fast_reference_luma = static_cast<double>(luma);
     } else if (!std::strcmp(arg, "--ring") && has_value) {
       a->ring_slots = std::atoi(args[static_cast<std::size_t>(++i)]);

@@ -79,6 +79,22 @@ int data_lines(const std::filesystem::path& p) {
   return n;
 }
 
+// scopetrack-sim's option for the organ texture from the real liver photo.
+std::string photo_texture() {
+  return " --texture " + test::shell_quoted(test::shared_data("real/laparoscopy_liver_1080p.y4m"));
+}
+
+// The ablation run of a test: dir/seq replayed into dir/control with
+// kDeterministic + extra, scored and printed under label.
+EvalResult track_control(const std::filesystem::path& dir, const std::string& extra, const std::string& label) {
+  std::string err;
+  REQUIRE_MESSAGE(track(dir / "seq", dir / "control", &err, kDeterministic + extra) == 0, err);
+  auto control = evaluate_run(dir / "seq", dir / "control");
+  REQUIRE(control.ok());
+  MESSAGE(label << ": " << format_eval_table(control.value()));
+  return control->result;
+}
+
 // Initialised, no wrong pose, and lost / TRE median / TRE p95 within bounds.
 void check_run(const EvalResult& e, double max_lost_pct, double max_tre_median_px, double max_tre_p95_px) {
   CHECK(e.init_ok);
@@ -123,8 +139,7 @@ TEST_CASE(
 TEST_CASE("app_e2e: tissue from the real liver photo (orbit, 640x360) is tracked without drift" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_photo");
-  simulate(dir / "seq", 300, "640x360", 1, "orbit",
-           " --texture " + test::shell_quoted(test::shared_data("real/laparoscopy_liver_1080p.y4m")));
+  simulate(dir / "seq", 300, "640x360", 1, "orbit", photo_texture());
   const EvalReport report = track_evaluate(dir, kDeterministic);
   check_run(report.result, 3.0, 1.5, 5.0);
 }
@@ -139,20 +154,15 @@ TEST_CASE("app_e2e: tissue from the real liver photo (orbit, 640x360) is tracked
 TEST_CASE("app_e2e: a dim scene (photo tissue, light 0.3, 640x360): FAST thresholds follow the light" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_dim");
-  simulate(dir / "seq", 150, "640x360", 1, "orbit",
-           " --light 0.3 --texture " + test::shell_quoted(test::shared_data("real/laparoscopy_liver_1080p.y4m")));
+  simulate(dir / "seq", 150, "640x360", 1, "orbit", " --light 0.3" + photo_texture());
   const EvalReport scaled = track_evaluate(dir, kDeterministic);
   check_run(scaled.result, 3.0, 2.5, 6.0);
   CHECK(summary_number(dir / "out", "dim_frames") >= 140);
   CHECK(summary_number(dir / "out", "min_fast_threshold_scale") < 0.7);
-  std::string err;
-  REQUIRE_MESSAGE(track(dir / "seq", dir / "control", &err, kDeterministic + " --fast-reference-luma 0") == 0, err);
-  auto control = evaluate_run(dir / "seq", dir / "control");
-  REQUIRE(control.ok());
-  MESSAGE("FAST thresholds not scaled: " << format_eval_table(control.value()));
+  const EvalResult control = track_control(dir, " --fast-reference-luma 0", "FAST thresholds not scaled");
   CHECK(summary_number(dir / "control", "dim_frames") == 0);
   // The control shows the test needs the scaling.
-  CHECK((control->result.lost_pct > 5.0 || control->result.tre_p95_px > 6.0));
+  CHECK((control.lost_pct > 5.0 || control.tre_p95_px > 6.0));
 }
 
 // A grasping instrument over smooth tissue (photo texture, manipulation
@@ -165,19 +175,14 @@ TEST_CASE("app_e2e: a dim scene (photo tissue, light 0.3, 640x360): FAST thresho
 TEST_CASE("app_e2e: an instrument over smooth tissue is masked by its colour (photo manipulation, 640x360)" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_instrument");
-  simulate(dir / "seq", 300, "640x360", 1, "manipulation",
-           " --texture " + test::shell_quoted(test::shared_data("real/laparoscopy_liver_1080p.y4m")));
+  simulate(dir / "seq", 300, "640x360", 1, "manipulation", photo_texture());
   const EvalReport with_mask = track_evaluate(dir, kDeterministic);
   CHECK(summary_number(dir / "out", "occluder_mask_frames") == 300);
   CHECK(summary_number(dir / "out", "occluder_removed_px_mean") > 1000);
   check_run(with_mask.result, 3.0, 1.5, 6.0);
-  std::string err;
-  REQUIRE_MESSAGE(track(dir / "seq", dir / "control", &err, kDeterministic + " --no-occluder-mask") == 0, err);
-  auto control = evaluate_run(dir / "seq", dir / "control");
-  REQUIRE(control.ok());
-  MESSAGE("without the occluder mask: " << format_eval_table(control.value()));
+  const EvalResult control = track_control(dir, " --no-occluder-mask", "without the occluder mask");
   // The control shows the test needs the mask: the pose follows the instrument.
-  CHECK((control->result.lost_pct > 10.0 || control->result.tre_p95_px > 10.0));
+  CHECK((control.lost_pct > 10.0 || control.tre_p95_px > 10.0));
 }
 
 // Fast motion: the scope jumps ahead in two blurred bursts (5-6 deg per
