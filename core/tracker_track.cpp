@@ -48,28 +48,13 @@ bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
 
 // The FAST threshold scale of this frame (TrackerConfig::fast_reference_luma):
 // the median block-mean luma over the valid mask and, if given, the organ
-// mask (every second mask pixel each way), above video black (16), over the
-// reference's. 1 when off, at or above the reference, or with no pixel.
+// mask (ValidMaskBuilder::median_block_mean), above video black (16), over
+// the reference's. 1 when off, at or above the reference, or with no pixel.
 float TrackerImpl::fast_threshold_scale(GrayView organ) const {
   constexpr int kBlack = 16;
   if (!(config_.fast_reference_luma > kBlack) || valid_view_.empty()) return 1.f;
-  const GrayView means = valid_mask_.block_means();
-  if (means.width != valid_view_.width || means.height != valid_view_.height) return 1.f;
-  std::array<int, 256> hist{};
-  int n = 0;
-  for (int y = 0; y < means.height; y += 2) {
-    const std::uint8_t* m = means.row(y);
-    const std::uint8_t* v = valid_view_.row(y);
-    const std::uint8_t* o = organ.empty() ? nullptr : organ.row(y * organ.height / means.height);
-    for (int x = 0; x < means.width; x += 2) {
-      if (!v[x] || (o && !o[x * organ.width / means.width])) continue;
-      ++hist[m[x]];
-      ++n;
-    }
-  }
-  if (n == 0) return 1.f;
-  int median = 0;
-  for (int acc = 0; median < 255 && (acc += hist[static_cast<std::size_t>(median)]) <= n / 2;) ++median;
+  const int median = valid_mask_.median_block_mean(valid_view_, organ);
+  if (median < 0) return 1.f;
   const double s = static_cast<double>(median - kBlack) / (config_.fast_reference_luma - kBlack);
   return static_cast<float>(std::clamp(s, 0.0, 1.0));
 }

@@ -1,6 +1,7 @@
 #include "core/valid_mask.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <string>
 
@@ -9,6 +10,19 @@
 #include <opencv2/core/hal/intrin.hpp>
 
 namespace st {
+
+namespace {
+
+// The value below which at most `rank` of the histogram's samples lie: the
+// first bin whose cumulative count exceeds rank (255 if none).
+int histogram_rank(const std::array<int, 256>& hist, long long rank) {
+  long long acc = 0;
+  int level = 0;
+  while (level < 255 && acc + hist[static_cast<std::size_t>(level)] <= rank) acc += hist[static_cast<std::size_t>(level++)];
+  return level;
+}
+
+}  // namespace
 
 Status ValidMaskBuilder::configure(const ValidMaskConfig& c, int width, int height) {
   if (c.downscale != 1 && c.downscale != 2 && c.downscale != 4)
@@ -102,12 +116,9 @@ void ValidMaskBuilder::field_stop_spans() {
   // Black level: 2nd percentile of block means (the border is a large share
   // of a scope frame; if the frame has none, the level is dark tissue and
   // black_max stops us from cutting it).
-  int hist[256] = {};
+  std::array<int, 256> hist{};
   for (std::uint8_t v : mean_) ++hist[v];
-  const std::size_t target = mean_.size() / 50;
-  std::size_t acc = 0;
-  int level = 0;
-  while (level < 255 && acc + static_cast<std::size_t>(hist[level]) <= target) acc += static_cast<std::size_t>(hist[level++]);
+  const int level = histogram_rank(hist, static_cast<long long>(mean_.size() / 50));
   black_level_ = level;
   const bool has_border = level <= config_.black_max;
   const int thr = level + config_.black_offset;
@@ -202,6 +213,23 @@ GrayView ValidMaskBuilder::build(GrayView frame) {
     std::fill(out + l, out + mask_w_, 0);
   }
   return mask();
+}
+
+int ValidMaskBuilder::median_block_mean(GrayView within, GrayView organ) const {
+  if (within.width != mask_w_ || within.height != mask_h_ || mask_w_ == 0) return -1;
+  std::array<int, 256> hist{};
+  long long n = 0;
+  for (int y = 0; y < mask_h_; y += 2) {
+    const std::uint8_t* m = mean_.data() + static_cast<std::ptrdiff_t>(y) * mask_w_;
+    const std::uint8_t* v = within.row(y);
+    const std::uint8_t* o = organ.empty() ? nullptr : organ.row(y * organ.height / mask_h_);
+    for (int x = 0; x < mask_w_; x += 2) {
+      if (!v[x] || (o && !o[x * organ.width / mask_w_])) continue;
+      ++hist[m[x]];
+      ++n;
+    }
+  }
+  return n > 0 ? histogram_rank(hist, n / 2) : -1;
 }
 
 }  // namespace st

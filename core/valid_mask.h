@@ -40,8 +40,11 @@ class ValidMaskBuilder {
   GrayView build(GrayView frame);
 
   GrayView mask() const { return GrayView(mask_.data(), mask_w_, mask_h_, mask_w_); }
-  // The last frame's mean luma per mask pixel (downscale x downscale blocks).
-  GrayView block_means() const { return GrayView(mean_.data(), mask_w_, mask_h_, mask_w_); }
+  // Median of the last frame's block means (mean luma per mask pixel) over
+  // every second mask pixel each way that is set in `within` (mask size)
+  // and, when not empty, in `organ` (any size, sampled at the same place).
+  // -1 when no such pixel, or `within` is not of the mask's size.
+  int median_block_mean(GrayView within, GrayView organ) const;
   int black_level() const { return black_level_; }        // last frame, luma
   int highlight_threshold() const { return highlight_thr_; }  // last frame, luma
   int highlight_pixels() const { return highlight_pixels_; }  // at mask resolution, before dilation
