@@ -13,6 +13,7 @@
 #include "hal/file_io.h"
 #include "hal/mesh_file.h"
 #include "registration.h"
+#include "support/raster_scene.h"
 #include "support/shell.h"
 #include "support/support.h"
 
@@ -20,34 +21,14 @@ using namespace st;
 
 namespace {
 
-double angle_deg(const SE3& a, const SE3& b) {
-  const SE3 d = a * b.inverse();
-  return std::acos(std::clamp((d.rotation().trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / M_PI;
-}
-
-double centre_mm(const SE3& a, const SE3& b) {
-  const Vec3 ca = -(a.rotation().transpose() * a.translation());
-  const Vec3 cb = -(b.rotation().transpose() * b.translation());
-  return (ca - cb).norm();
-}
+// Between the camera poses in the model frame (T_camera_model given): the
+// relative rotation, and the distance between the camera centres.
+double angle_deg(const SE3& a, const SE3& b) { return pose_delta(a.inverse(), b.inverse()).angle_deg; }
+double centre_mm(const SE3& a, const SE3& b) { return pose_delta(a.inverse(), b.inverse()).distance_mm; }
 
 // The scope 140 mm from the mesh's centre, looking at it, rolled a little.
 SE3 looking_at(const Mesh& mesh) {
-  Vec3 lo = mesh.vertex(0), hi = mesh.vertex(0);
-  for (int i = 1; i < mesh.vertex_count(); ++i) {
-    lo = lo.cwiseMin(mesh.vertex(i));
-    hi = hi.cwiseMax(mesh.vertex(i));
-  }
-  const Vec3 centre = 0.5 * (lo + hi);
-  const Vec3 eye = centre + Vec3(30, -60, 120).normalized() * 140.0;
-  const Vec3 z = (centre - eye).normalized();
-  const Vec3 x = Vec3(0.2, 1, 0).cross(z).normalized();
-  const Vec3 y = z.cross(x);
-  Mat3 R;  // rows: camera axes in the model frame
-  R.row(0) = x.transpose();
-  R.row(1) = y.transpose();
-  R.row(2) = z.transpose();
-  return SE3(R, -R * eye);
+  return test::look_at(test::bbox_centre(mesh), -Vec3(30, -60, 120).normalized(), 140.0, 0.2);
 }
 
 // count mesh vertices that project into the image at T (chosen by a fixed

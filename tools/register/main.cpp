@@ -4,8 +4,6 @@
 // mesh, the pose, and how far it is from the sequence's current one;
 // --write stores it in SEQ/sequence.yaml (the old file kept as
 // sequence.yaml.bak). Exit: 0 done, 1 bad input or no pose, 2 bad command line.
-#include <algorithm>
-#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -107,13 +105,10 @@ int main(int argc, char** argv) {
               r.refined ? "refined" : "not kept");
   if (off_mesh > 0)
     std::printf("warning: %d picked model point(s) more than %.0f mm from the mesh surface\n", off_mesh, kOffMeshMm);
-  const st::SE3 delta = r.T_camera_model * cfg->T_camera_model_init.inverse();
-  const double angle =
-      std::acos(std::clamp((delta.rotation().trace() - 1.0) / 2.0, -1.0, 1.0)) * 180.0 / M_PI;
-  const st::Vec3 c_old = -(cfg->T_camera_model_init.rotation().transpose() * cfg->T_camera_model_init.translation());
-  const st::Vec3 c_new = -(r.T_camera_model.rotation().transpose() * r.T_camera_model.translation());
-  std::printf("change from the sequence's T_camera_model_init: %.3f deg, camera centre %.3f mm\n", angle,
-              (c_new - c_old).norm());
+  // Between the camera poses in the model frame: the distance is the camera centre's move.
+  const st::PoseDelta change = st::pose_delta(cfg->T_camera_model_init.inverse(), r.T_camera_model.inverse());
+  std::printf("change from the sequence's T_camera_model_init: %.3f deg, camera centre %.3f mm\n",
+              change.angle_deg, change.distance_mm);
   print_matrix(r.T_camera_model);
   if (!write) return 0;
   const std::filesystem::path backup = yaml_path.string() + ".bak";

@@ -90,10 +90,7 @@ Result<RegistrationResult> register_first_frame(const std::vector<RegistrationPa
   RegistrationResult out;
   double best = std::numeric_limits<double>::infinity();
   bool have = false;
-  const auto bearing = [&](int i) {
-    const Vec2& u = q[static_cast<std::size_t>(i)];
-    return Vec3((u.x() - K.cx) / K.fx, (u.y() - K.cy) / K.fy, 1.0);
-  };
+  const auto bearing = [&](int i) { return K.unproject(q[static_cast<std::size_t>(i)], 1.0); };
   for (int a = 0; a < n; ++a)
     for (int b = a + 1; b < n; ++b)
       for (int c = b + 1; c < n; ++c) {
@@ -126,8 +123,7 @@ Result<RegistrationResult> register_first_frame(const std::vector<RegistrationPa
   SE3 T = out.T_camera_model;
   PoseSolverSummary summary;
   const Correspondences corr{p.data(), q.data(), info.data(), n};
-  if (solver.solve(corr, K, &T, &summary) &&
-      truncated_cost(T, p, q, K, tau2) <= truncated_cost(out.T_camera_model, p, q, K, tau2) + 1e-9) {
+  if (solver.solve(corr, K, &T, &summary) && truncated_cost(T, p, q, K, tau2) <= best + 1e-9) {
     out.T_camera_model = T;
     out.refined = true;
   }
