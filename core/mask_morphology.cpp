@@ -124,8 +124,24 @@ void combine_columns(ImageView<const std::uint8_t> in, int r, ImageView<std::uin
 
 }  // namespace
 
+void MorphBuffers::configure(int max_width, int max_height) {
+  max_width_ = std::max(max_width, 0);
+  max_height_ = std::max(max_height, 0);
+  rows_.assign(static_cast<std::size_t>(max_width_) * static_cast<std::size_t>(max_height_), 0);
+  counts_.assign(static_cast<std::size_t>(max_width_), 0);
+  prefix_.assign(static_cast<std::size_t>(max_width_) + 1, 0);
+}
+
+MorphScratch MorphBuffers::scratch(int width, int height) {
+  if (width < 0 || height < 0 || width > max_width_ || height > max_height_) return MorphScratch{{}, nullptr, nullptr};
+  return MorphScratch{ImageView<std::uint8_t>(rows_.data(), width, height), counts_.data(), prefix_.data()};
+}
+
 void morph_square(ImageView<const std::uint8_t> in, int k, ImageView<std::uint8_t> out,
                   const MorphScratch& scratch) {
+  if (in.width != out.width || in.height != out.height || scratch.rows.width < in.width ||
+      scratch.rows.height < in.height || scratch.column_counts == nullptr || scratch.row_prefix == nullptr)
+    return;  // a caller bug (MorphBuffers sized too small): out is left as it was
   const bool erode = k < 0;
   const int r = std::min(k < 0 ? -k : k, std::max(in.width, in.height));
   if (!erode) {

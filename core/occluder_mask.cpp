@@ -33,10 +33,8 @@ Status OccluderMaskBuilder::configure(const OccluderMaskConfig& c, int width, in
   const std::size_t n = static_cast<std::size_t>(mask_w_) * static_cast<std::size_t>(mask_h_);
   candidates_buf_.assign(n, 0);
   eroded_.assign(n, 0);
-  scratch_rows_.assign(n, 0);
   mask_.assign(n, 0);
-  counts_.assign(static_cast<std::size_t>(mask_w_), 0);
-  prefix_.assign(static_cast<std::size_t>(mask_w_) + 1, 0);
+  morph_.configure(mask_w_, mask_h_);
   const double r2 = static_cast<double>(c.max_chroma_ratio) * static_cast<double>(c.max_chroma_ratio);
   ratio2_q16_ = static_cast<std::uint32_t>(std::lround(r2 * 65536.0));  // < 65536: a 16-bit factor
   max_chroma2_ = c.max_chroma * c.max_chroma;
@@ -196,8 +194,7 @@ GrayView OccluderMaskBuilder::build(GrayView luma, GrayView u, GrayView v) {
   const std::ptrdiff_t off = static_cast<std::ptrdiff_t>(y0) * mask_w_;
   std::fill(mask_.begin(), mask_.begin() + off, 0);
   std::fill(mask_.begin() + off + static_cast<std::ptrdiff_t>(rows) * mask_w_, mask_.end(), 0);
-  const MorphScratch scratch{ImageView<std::uint8_t>(scratch_rows_.data(), mask_w_, rows), counts_.data(),
-                             prefix_.data()};
+  const MorphScratch scratch = morph_.scratch(mask_w_, rows);
   const GrayView cand(candidates_buf_.data() + off, mask_w_, rows, mask_w_);
   const ImageView<std::uint8_t> out(mask_.data() + off, mask_w_, rows, mask_w_);
   if (config_.open_radius > 0) {

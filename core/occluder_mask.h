@@ -57,6 +57,7 @@
 #include <vector>
 
 #include "core/image.h"
+#include "core/mask_morphology.h"
 #include "core/result.h"
 
 namespace st {
@@ -109,8 +110,8 @@ class OccluderMaskBuilder {
   std::uint32_t ratio2_q16_ = 0;  // round(max_chroma_ratio^2 * 65536)
   int max_chroma2_ = 0;           // max_chroma^2
   int min_luma_ = 0;              // max(min_luma, black_luma)
-  std::vector<std::uint8_t> candidates_buf_, eroded_, scratch_rows_, mask_;
-  std::vector<std::int32_t> counts_, prefix_;  // morph_square scratch
+  std::vector<std::uint8_t> candidates_buf_, eroded_, mask_;
+  MorphBuffers morph_;
   int candidates_ = 0;
   int first_row_ = 0, last_row_ = -1;  // last build(): rows holding candidates
 };

@@ -141,9 +141,7 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
   cell_has_strict_.assign(static_cast<std::size_t>(ceil_div(width, c.threshold_cell_px) + 1) *
                               (ceil_div(height, c.threshold_cell_px) + 1), 0);
   organ_margined_.assign(static_cast<std::size_t>(width) * height, 0);
-  organ_tmp_.assign(static_cast<std::size_t>(width) * height, 0);
-  organ_counts_.assign(static_cast<std::size_t>(width), 0);
-  organ_prefix_.assign(static_cast<std::size_t>(width) + 1, 0);
+  organ_morph_.configure(width, height);
   blocks_x_ = ceil_div(width, kBlock);
   blocks_y_ = ceil_div(height, kBlock);
   block_ok_.assign(static_cast<std::size_t>(blocks_x_) * blocks_y_ * 5, 0);
@@ -190,9 +188,7 @@ void OrbExtractor::prepare_masks(GrayView organ, GrayView valid) {
     const int r = m >= 0 ? ceil_div(m * organ.width, width_) : -ceil_div(-m * organ.width, width_);
     if (r != 0 && organ.width <= width_ && organ.height <= height_) {
       const ImageView<std::uint8_t> margined(organ_margined_.data(), organ.width, organ.height);
-      const MorphScratch scratch{ImageView<std::uint8_t>(organ_tmp_.data(), organ.width, organ.height),
-                                 organ_counts_.data(), organ_prefix_.data()};
-      morph_square(organ, r, margined, scratch);
+      morph_square(organ, r, margined, organ_morph_.scratch(organ.width, organ.height));
       organ_ = margined;
     } else {
       organ_ = organ;

@@ -133,8 +133,7 @@ class OrbExtractor {
   std::vector<Candidate> cand_tmp_;          // spread(): candidates bucketed by cell
   std::vector<std::uint8_t> cell_has_strict_;
   std::vector<std::uint8_t> organ_margined_;  // organ mask grown or shrunk by the margin (mask resolution)
-  std::vector<std::uint8_t> organ_tmp_;                // morph_square scratch: rows
-  std::vector<std::int32_t> organ_counts_, organ_prefix_;  // and counts
+  MorphBuffers organ_morph_;
   std::vector<std::uint8_t> block_ok_;       // per 16x16 level-0 block: [0] any allowed pixel,
                                              // [1] all allowed, [2] neighbourhood fully allowed, [3..4] scratch
   std::vector<std::uint8_t> organ_depth_;    // per block: blocks to the nearest one not wholly organ

@@ -132,9 +132,7 @@ Status MeshRasterizer::configure(const Mesh& mesh, const RasterConfig& config) {
   dirty_x0_.assign(raster_height_, raster_width_);
   dirty_x1_.assign(raster_height_, -1);
   visible_bits_.assign((tri_.size() / 3 + 63) / 64, 0);
-  morph_rows_.assign(pixels, 0);
-  morph_counts_.assign(raster_width_, 0);
-  morph_prefix_.assign(raster_width_ + 1, 0);
+  morph_.configure(raster_width_, raster_height_);
   covered_pixels_ = 0;
   stats_ = {};
   configured_ = true;
@@ -440,9 +438,7 @@ Vec3 MeshRasterizer::model_point(const Vec2& px_raster, double depth_mm) const {
 void MeshRasterizer::morph_mask(int k, ImageView<std::uint8_t> out) const {
   if (!configured_ || out.empty() || out.width != raster_width_ || out.height != raster_height_)
     return;
-  MorphScratch scratch{ImageView<std::uint8_t>(morph_rows_.data(), raster_width_, raster_height_),
-                       morph_counts_.data(), morph_prefix_.data()};
-  morph_square(mask(), k, out, scratch);
+  morph_square(mask(), k, out, morph_.scratch(raster_width_, raster_height_));
 }
 
 int MeshRasterizer::visible_triangles(std::int32_t* out, int capacity) const {

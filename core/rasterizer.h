@@ -12,6 +12,7 @@
 
 #include "core/camera.h"
 #include "core/image.h"
+#include "core/mask_morphology.h"
 #include "core/mesh.h"
 #include "core/result.h"
 #include "core/se3.h"
@@ -129,8 +130,7 @@ class MeshRasterizer {
   std::vector<std::int32_t> dirty_x0_, dirty_x1_;
   // Scratch for the const helpers (sized at configure; single-threaded use).
   mutable std::vector<std::uint64_t> visible_bits_;
-  mutable std::vector<std::uint8_t> morph_rows_;
-  mutable std::vector<std::int32_t> morph_counts_, morph_prefix_;
+  mutable MorphBuffers morph_;
 };
 
 }  // namespace st

@@ -42,10 +42,8 @@ Status ValidMaskBuilder::configure(const ValidMaskConfig& c, int width, int heig
   mean_.assign(n, 0);
   max_.assign(n, 0);
   sat_.assign(n, 0);
-  sat_tmp_.assign(n, 0);
   sat_dil_.assign(n, 0);
-  sat_counts_.assign(static_cast<std::size_t>(mask_w_), 0);
-  sat_prefix_.assign(static_cast<std::size_t>(mask_w_) + 1, 0);
+  morph_.configure(mask_w_, mask_h_);
   mask_.assign(n, 0);
   for (auto* v : {&first_, &last_, &efirst_, &elast_}) v->assign(static_cast<std::size_t>(mask_h_), 0);
   return Status::Ok();
@@ -198,8 +196,7 @@ GrayView ValidMaskBuilder::build(GrayView frame) {
     const int y0 = std::max(sat_y0 - r, 0), y1 = std::min(sat_y1 + r, mask_h_ - 1);
     const std::ptrdiff_t off = static_cast<std::ptrdiff_t>(y0) * mask_w_;
     const int rows = y1 - y0 + 1;
-    const MorphScratch scratch{ImageView<std::uint8_t>(sat_tmp_.data(), mask_w_, rows),
-                               sat_counts_.data(), sat_prefix_.data()};
+    const MorphScratch scratch = morph_.scratch(mask_w_, rows);
     morph_square(GrayView(sat_.data() + off, mask_w_, rows), r,
                  ImageView<std::uint8_t>(sat_dil_.data() + off, mask_w_, rows), scratch);
   }

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/image.h"
+#include "core/mask_morphology.h"
 #include "core/result.h"
 
 namespace st {
@@ -58,8 +59,8 @@ class ValidMaskBuilder {
   std::vector<std::uint8_t> mean_, max_;        // per mask pixel: block mean and max
   std::vector<std::int32_t> first_, last_;      // per mask row: non-black span
   std::vector<std::int32_t> efirst_, elast_;    // eroded spans
-  std::vector<std::uint8_t> sat_, sat_tmp_, sat_dil_;
-  std::vector<std::int32_t> sat_counts_, sat_prefix_;  // morph_square scratch
+  std::vector<std::uint8_t> sat_, sat_dil_;
+  MorphBuffers morph_;
   std::vector<std::uint8_t> mask_;
   int black_level_ = 0, highlight_thr_ = 0, highlight_pixels_ = 0;
 };
