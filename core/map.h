@@ -29,11 +29,14 @@ namespace st {
 
 struct MapPoint {
   Vec3 p_model = Vec3::Zero();         // mm, on the mesh surface
-  Vec3 view_dir_model = Vec3::UnitZ(); // unit, from the creating camera centre to the point
+  // The reference observation: the keyframe observation the descriptor came
+  // from (the creating one, or the latest keyframe inlier one: the
+  // tracker's refresh_descriptors).
+  Vec3 view_dir_model = Vec3::UnitZ(); // unit, from that camera centre to the point
   Descriptor descriptor{};
-  float ref_distance_mm = 0.f;         // camera distance when created
-  float ref_angle_deg = 0.f;           // keypoint angle when created (orientation check)
-  std::int16_t ref_octave = 0;         // octave when created (scale prediction)
+  float ref_distance_mm = 0.f;         // camera distance then
+  float ref_angle_deg = 0.f;           // keypoint angle then (orientation check)
+  std::int16_t ref_octave = 0;         // octave then (scale prediction)
   bool alive = false;
   int visible = 0;                     // frames it projected into the view
   int found = 0;                       // frames it was a pose inlier

@@ -71,6 +71,11 @@ struct TrackerConfig {
   // against it; direct alignment and the image-motion prior skip them too.
   // false: --no-occluder-mask ablation. Without chroma there is no mask.
   bool use_occluder_mask = true;
+  // Map points take the descriptor (and angle, octave, distance, viewing
+  // direction) of their latest keyframe inlier observation, not only of the
+  // keyframe that made them (TrackerImpl::add_keyframe). false: the
+  // creating observation's for good (--no-descriptor-refresh ablation).
+  bool refresh_descriptors = true;
   // Bounded map.
   int max_keyframes = 48;          // <= kMaxKeyframes
   int max_map_points = 12000;      // <= kMaxMapPoints

@@ -67,7 +67,13 @@ bool TrackerImpl::surface_point(const Vec2& px_ideal, Vec3* p_model) const {
 // Inserts a keyframe at T_camera_model: links to this frame's inliers (when
 // tracking) and new map points, from the mesh depth at exactly this pose,
 // for the keypoints that matched nothing, marked anchored or not
-// (MapPoint::anchored). Returns the keyframe id or -1.
+// (MapPoint::anchored). With refresh_descriptors, each linked inlier's
+// reference observation (descriptor, angle, octave, distance, viewing
+// direction) becomes this keyframe's: the tissue's appearance changes
+// with the view (the light rides on the scope, an instrument turns the
+// organ), and a point still matched by the descriptor it was made with
+// loses more and more often to a look-alike corner nearby. Returns the
+// keyframe id or -1.
 int TrackerImpl::add_keyframe(const SE3& T_camera_model, int frame_index, bool link_inliers, bool anchored) {
   const int kf = map_.add_keyframe(T_camera_model, frame_index, ref_keyframe_);
   if (kf < 0) return -1;
@@ -86,22 +92,29 @@ int TrackerImpl::add_keyframe(const SE3& T_camera_model, int frame_index, bool l
     l.octave = static_cast<std::int16_t>(kp.octave);
     return l;
   };
-  if (link_inliers)
-    for (int i = 0; i < corr_count_; ++i)
-      if (corr_inlier_[static_cast<std::size_t>(i)])
-        map_.add_link(kf, link_of(corr_kp_[static_cast<std::size_t>(i)], corr_point_[static_cast<std::size_t>(i)]));
   const Vec3 centre = centre_of(T_camera_model);
+  // The reference observation of a point: the one its descriptor came from.
+  const auto set_reference = [&](int k, MapPoint* p) {
+    const Keypoint& kp = f.keypoints[static_cast<std::size_t>(k)];
+    const Vec3 ray = p->p_model - centre;
+    p->ref_distance_mm = static_cast<float>(ray.norm());
+    p->view_dir_model = ray.normalized();
+    p->descriptor = f.descriptors[static_cast<std::size_t>(k)];
+    p->ref_angle_deg = kp.angle_deg;
+    p->ref_octave = static_cast<std::int16_t>(kp.octave);
+  };
+  if (link_inliers)
+    for (int i = 0; i < corr_count_; ++i) {
+      const auto is = static_cast<std::size_t>(i);
+      if (!corr_inlier_[is]) continue;
+      map_.add_link(kf, link_of(corr_kp_[is], corr_point_[is]));
+      if (config_.refresh_descriptors) set_reference(corr_kp_[is], &map_.point(corr_point_[is]));
+    }
   for (int k = 0; k < f.count; ++k) {
     if (kp_inlier_[static_cast<std::size_t>(k)] != 0) continue;  // matched (inlier or outlier)
     MapPoint p;
     if (!surface_point(kp_ideal_[static_cast<std::size_t>(k)], &p.p_model)) continue;
-    const Keypoint& kp = f.keypoints[static_cast<std::size_t>(k)];
-    const Vec3 ray = p.p_model - centre;
-    p.ref_distance_mm = static_cast<float>(ray.norm());
-    p.view_dir_model = ray.normalized();
-    p.descriptor = f.descriptors[static_cast<std::size_t>(k)];
-    p.ref_angle_deg = kp.angle_deg;
-    p.ref_octave = static_cast<std::int16_t>(kp.octave);
+    set_reference(k, &p);
     p.visible = p.found = 1;
     p.last_seen_frame = p.created_frame = frame_index;
     p.anchored = anchored;
