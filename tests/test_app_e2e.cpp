@@ -95,6 +95,13 @@ EvalResult track_control(const std::filesystem::path& dir, const std::string& ex
   return control->result;
 }
 
+// Photo-textured manipulation, 300 frames of size and seed, simulated into
+// dir/seq and replayed deterministically into dir/out.
+EvalReport photo_manipulation_run(const std::filesystem::path& dir, const std::string& size, int seed) {
+  simulate(dir / "seq", 300, size, seed, "manipulation", photo_texture());
+  return track_evaluate(dir, kDeterministic);
+}
+
 // Initialised, no wrong pose, and lost / TRE median / TRE p95 within bounds.
 void check_run(const EvalResult& e, double max_lost_pct, double max_tre_median_px, double max_tre_p95_px) {
   CHECK(e.init_ok);
@@ -175,8 +182,7 @@ TEST_CASE("app_e2e: a dim scene (photo tissue, light 0.3, 640x360): FAST thresho
 TEST_CASE("app_e2e: an instrument over smooth tissue is masked by its colour (photo manipulation, 640x360)" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_instrument");
-  simulate(dir / "seq", 300, "640x360", 1, "manipulation", photo_texture());
-  const EvalReport with_mask = track_evaluate(dir, kDeterministic);
+  const EvalReport with_mask = photo_manipulation_run(dir, "640x360", 1);
   CHECK(summary_number(dir / "out", "occluder_mask_frames") == 300);
   CHECK(summary_number(dir / "out", "occluder_removed_px_mean") > 1000);
   check_run(with_mask.result, 3.0, 1.5, 6.0);
@@ -197,8 +203,7 @@ TEST_CASE("app_e2e: an instrument over smooth tissue is masked by its colour (ph
 TEST_CASE("app_e2e: map points follow the tissue's appearance (photo manipulation seed 4, 1280x720)" *
           doctest::timeout(test::budget_s(600)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_refresh");
-  simulate(dir / "seq", 300, "1280x720", 4, "manipulation", photo_texture());
-  const EvalReport refreshed = track_evaluate(dir, kDeterministic);
+  const EvalReport refreshed = photo_manipulation_run(dir, "1280x720", 4);
   CHECK(summary_number(dir / "out", "refresh_descriptors") == 1);
   check_run(refreshed.result, 3.0, 1.5, 6.0);
   const EvalResult control = track_control(dir, " --no-descriptor-refresh", "descriptors never refreshed");

@@ -12,6 +12,7 @@
 #include "core/image.h"
 #include "core/mask_morphology.h"
 #include "support/alloc_guard.h"
+#include "support/morph_reference.h"
 
 using namespace st;
 
@@ -43,13 +44,7 @@ TEST_CASE("mask morphology: one MorphBuffers serves every size within it, as Ope
     Image<std::uint8_t> out(w, h);
     const cv::Mat in_mat(h, w, CV_8U, const_cast<std::uint8_t*>(in.data()));
     for (int k : {-20, -3, -1, 0, 2, 17}) {
-      const int size = 2 * std::abs(k) + 1;
-      const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(size, size));
-      cv::Mat expected;
-      if (k < 0)
-        cv::erode(in_mat, expected, kernel);
-      else
-        cv::dilate(in_mat, expected, kernel);
+      const cv::Mat expected = test::opencv_morph_square(in_mat, k);
       {
         test::AllocationCounter guard;
         morph_square(in.view(), k, out.view(), buffers.scratch(w, h));

@@ -19,6 +19,7 @@
 #include "core/orb_matcher.h"
 #include "core/valid_mask.h"
 #include "support/alloc_guard.h"
+#include "support/morph_reference.h"
 #include "support/orb_fixtures.h"
 
 using namespace st;
@@ -397,9 +398,7 @@ TEST_CASE("orb valid mask: highlight dilation (band of rows only) equals a full 
       sat.at<std::uint8_t>(y, x) = mx >= vmb.highlight_threshold() ? 255 : 0;
     }
   const int r = (vc.highlight_dilate_px + vc.downscale - 1) / vc.downscale;
-  cv::Mat dilated;
-  cv::dilate(sat, dilated, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * r + 1, 2 * r + 1)));
-  const cv::Mat expected = 255 - dilated;
+  const cv::Mat expected = 255 - test::opencv_morph_square(sat, r);
   CHECK(vmb.highlight_pixels() > 0);
   CHECK(cv::countNonZero(mat_of(m) != expected) == 0);
   CHECK(cv::countNonZero(expected == 0) > 0);

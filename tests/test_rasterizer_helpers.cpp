@@ -12,6 +12,7 @@
 #include "core/image.h"
 #include "core/rasterizer.h"
 #include "support/alloc_guard.h"
+#include "support/morph_reference.h"
 #include "support/raster_reference.h"
 #include "support/raster_scene.h"
 #include "support/support.h"
@@ -164,13 +165,7 @@ TEST_CASE("raster: morph_mask equals OpenCV erode/dilate with a square kernel") 
   // +-16 and +-17: both paths of each (shifted rows up to 16, then counts).
   for (int k : {-24, -17, -16, -5, -2, -1, 0, 1, 3, 8, 16, 17, 24}) {
     r.morph_mask(k, out.view());
-    const int size = 2 * std::abs(k) + 1;
-    const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(size, size));
-    cv::Mat expected;
-    if (k < 0)
-      cv::erode(mask, expected, kernel);
-    else
-      cv::dilate(mask, expected, kernel);
+    const cv::Mat expected = test::opencv_morph_square(mask, k);
     const cv::Mat ours(m.height, m.width, CV_8U, out.data());
     CAPTURE(k);
     CHECK(cv::countNonZero(ours != expected) == 0);
