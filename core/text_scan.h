@@ -1,5 +1,6 @@
-// Whitespace-separated tokens and locale-free numbers over a byte view.
-// Shared by the text parsers (ASCII PLY/STL, TUM, markers). Never
+// Whitespace-separated tokens and locale-free numbers over a byte view, and
+// the data lines of a line-based text file. Shared by the text parsers
+// (ASCII PLY/STL, TUM, markers, scopetrack-register's pairs). Never
 // allocates; tracks the line number for error messages.
 #pragma once
 
@@ -7,6 +8,8 @@
 #include <cstddef>
 #include <string>
 #include <string_view>
+
+#include "core/result.h"
 
 namespace st {
 
@@ -91,6 +94,26 @@ inline std::string quote_bytes(std::string_view s, std::size_t max_chars = 40) {
   for (char c : s.substr(0, max_chars)) out += (c >= 32 && c < 127) ? c : '?';
   if (s.size() > max_chars) out += "...";
   return out + "'";
+}
+
+// Splits text into lines (numbered from 1), skipping blank ones and those
+// whose first non-blank character is '#'; calls fn(line, number) for the
+// others and stops at the first error fn returns.
+template <class Fn>
+Status for_each_data_line(std::string_view text, Fn&& fn) {
+  int number = 0;
+  std::size_t pos = 0;
+  while (pos < text.size()) {
+    std::size_t eol = text.find('\n', pos);
+    if (eol == std::string_view::npos) eol = text.size();
+    const std::string_view line = text.substr(pos, eol - pos);
+    pos = eol + 1;
+    ++number;
+    const std::size_t first = line.find_first_not_of(" \t\r");
+    if (first == std::string_view::npos || line[first] == '#') continue;
+    if (Status s = fn(line, number); !s) return s;
+  }
+  return Status::Ok();
 }
 
 }  // namespace st

@@ -17,24 +17,6 @@ std::string format_number(double v) {
 
 namespace {
 
-// Splits text into lines, skipping blank and '#' lines; calls fn(line, number).
-template <class Fn>
-Status for_each_data_line(std::string_view text, Fn&& fn) {
-  int number = 0;
-  std::size_t pos = 0;
-  while (pos < text.size()) {
-    std::size_t eol = text.find('\n', pos);
-    if (eol == std::string_view::npos) eol = text.size();
-    const std::string_view line = text.substr(pos, eol - pos);
-    pos = eol + 1;
-    ++number;
-    const std::size_t first = line.find_first_not_of(" \t\r");
-    if (first == std::string_view::npos || line[first] == '#') continue;
-    if (Status s = fn(line, number); !s) return s;
-  }
-  return Status::Ok();
-}
-
 // Exactly n finite numbers on the line, else a message naming the line.
 template <std::size_t N>
 Status read_numbers(std::string_view line, int number, const char* what, std::array<double, N>* v) {

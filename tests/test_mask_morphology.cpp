@@ -5,9 +5,9 @@
 #include <doctest/doctest.h>
 
 #include <cstdint>
-#include <cstdlib>
 #include <opencv2/imgproc.hpp>
 #include <random>
+#include <utility>
 
 #include "core/image.h"
 #include "core/mask_morphology.h"

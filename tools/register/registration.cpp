@@ -15,14 +15,8 @@ namespace st {
 Result<std::vector<RegistrationPair>> parse_registration_pairs(std::string_view text) {
   if (text.find('\0') != std::string_view::npos) return make_error("pairs: the file holds a NUL byte (not text)");
   std::vector<RegistrationPair> pairs;
-  int line_no = 0;
-  std::size_t start = 0;
-  while (start <= text.size()) {
-    const std::size_t end = std::min(text.find('\n', start), text.size());
-    std::string_view line = text.substr(start, end - start);
-    ++line_no;
-    start = end + 1;
-    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+  const Status s = for_each_data_line(text, [&](std::string_view line, int line_no) -> Status {
+    line = line.substr(0, line.find('#'));  // a comment after the numbers
     TextScanner scan(line);
     std::array<double, 5> v{};
     int n = 0;
@@ -33,7 +27,7 @@ Result<std::vector<RegistrationPair>> parse_registration_pairs(std::string_view 
                           " is not a finite number");
       ++n;
     }
-    if (n == 0) continue;  // blank or comment
+    if (n == 0) return Status::Ok();  // only blanks
     if (n != 5)
       return make_error("pairs line " + std::to_string(line_no) + ": " + std::to_string(n) +
                         " fields, want 5 (u v x y z: pixel, then model point in mm)");
@@ -41,8 +35,9 @@ Result<std::vector<RegistrationPair>> parse_registration_pairs(std::string_view 
       return make_error("pairs: more than " + std::to_string(kMaxRegistrationPairs) + " pairs (line " +
                         std::to_string(line_no) + ")");
     pairs.push_back({Vec2(v[0], v[1]), Vec3(v[2], v[3], v[4]), line_no});
-    if (end == text.size()) break;
-  }
+    return Status::Ok();
+  });
+  if (!s) return make_error(s.message());
   return pairs;
 }
 
