@@ -232,7 +232,7 @@ TEST_CASE("sim sequence: bad options are refused with a message") {
   CHECK_FALSE(run_simulation(o).ok());
 }
 
-TEST_CASE("sim CLI: --shutter and --organ-detail refuse what is not a number in range, writing nothing") {
+TEST_CASE("sim CLI: --shutter, --organ-detail and --smoke refuse what is not a number in range, writing nothing") {
   const auto dir = st::test::scratch_dir("sim_cli_bad");
   const std::string log = (dir / "log").string();
   const auto refused = [&](const std::string& opt, const std::string& bad) {
@@ -245,8 +245,9 @@ TEST_CASE("sim CLI: --shutter and --organ-detail refuse what is not a number in 
     CHECK(st::test::read_file_bytes(log).find(opt + " wants") != std::string::npos);
     CHECK_FALSE(std::filesystem::exists(dir / "seq" / "video.y4m"));
   };
-  for (const char* opt : {"--shutter", "--organ-detail"})
+  for (const char* opt : {"--shutter", "--organ-detail", "--smoke"})
     for (const char* bad : {"nan", "-0.1", "3", "0.5x", "''", "1e"}) refused(opt, bad);
+  refused("--smoke", "0.95");  // a veil that hides everything
   for (const char* bad : {"nan", "-0.1", "0", "2000", "0.5x", "''", "1e"}) refused("--texture-scale", bad);
   // A texture that is no photo: a clear error naming it, nothing written.
   {

@@ -2,7 +2,7 @@
 // ground truth (docs/sequence-format.md).
 //   scopetrack-sim --scenario NAME --out DIR [--frames N] [--size WxH]
 //                  [--seed S] [--mesh FILE] [--field-stop on|off] [--organ-detail F]
-//                  [--shutter F] [--light F] [--texture FILE.y4m] [--texture-scale PX_PER_MM]
+//                  [--shutter F] [--light F] [--smoke F] [--texture FILE.y4m] [--texture-scale PX_PER_MM]
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -21,6 +21,7 @@ void usage() {
                "                      [--organ-detail F (1; lower = smoother tissue)]\n"
                "                      [--shutter F (0.5 of the frame interval; 0 = no motion blur)]\n"
                "                      [--light F (1: the scope light's power; lower = a dimmer, noisier scene)]\n"
+               "                      [--smoke F (0: none; surgical smoke episodes, the veil's peak share 0..0.9)]\n"
                "                      [--texture FILE.y4m (organ texture from a photo's first frame)]\n"
                "                      [--texture-scale PX_PER_MM (4: photo pixels per mm of tissue)]\n");
 }
@@ -65,6 +66,9 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
     } else if (a == "--light") {
       if (!st::parse_double_in(v, 0.05, 4.0, &o->light))
         return "--light wants the scope light's power relative to the default, 0.05..4";
+    } else if (a == "--smoke") {
+      if (!st::parse_double_in(v, 0.0, st::sim::kMaxSmoke, &o->smoke))
+        return "--smoke wants the smoke veil's peak share of the view, 0..0.9 (0: no smoke)";
     } else if (a == "--texture") {
       o->texture_file = std::string(v);
     } else if (a == "--texture-scale") {

@@ -95,6 +95,8 @@ Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settin
     return make_error("organ detail must be a number in 0..2 (1: the calibrated texture)");
   if (!(settings.shutter >= 0.0 && settings.shutter <= 1.0))
     return make_error("shutter must be a fraction of the frame interval in 0..1");
+  if (!(settings.smoke >= 0.0 && settings.smoke <= kMaxSmoke))
+    return make_error("smoke must be the veil's peak share of the view in 0..0.9");
   settings_ = settings;
   scene_ = &scene;
   organ_centre_model_ = bounding_box(scene.organ).centre();
@@ -117,6 +119,7 @@ Status SceneRenderer::configure(const Scene& scene, const RenderSettings& settin
     specular_cutoff_[m] = std::pow(1e-4f, 1.0f / static_cast<float>(1 << materials_[m].shininess_log2));
   }
   build_camera_maps();
+  smoke_.configure(settings.smoke, settings.seed, settings.K.width, settings.K.height);
   if (K_ideal_.width > kMaxImageWidth || K_ideal_.height > kMaxImageHeight)
     return make_error("the distortion needs an ideal image of " + std::to_string(K_ideal_.width) + "x" +
                       std::to_string(K_ideal_.height) + " pixels, above the image capacity");

@@ -22,6 +22,7 @@
 #include "tools/sim/materials.h"
 #include "tools/sim/photo_texture.h"
 #include "tools/sim/scenario.h"
+#include "tools/sim/smoke.h"
 #include "tools/sim/scene.h"
 
 namespace st::sim {
@@ -55,6 +56,9 @@ struct RenderSettings {
   // speckle, spots and vessels (photo_texture.h); organ_detail scales its
   // contrast as it scales the speckle's. Null: procedural.
   std::shared_ptr<const PhotoTexture> organ_photo;
+  // Surgical smoke (smoke.h): the veil's share at the thickest point of
+  // an episode, 0..kMaxSmoke; 0 renders no smoke.
+  double smoke = 0.0;
 };
 
 class SceneRenderer {
@@ -132,6 +136,7 @@ class SceneRenderer {
   float specular_cutoff_[static_cast<int>(MaterialId::Count)] = {};
   ShadeMesh organ_, background_, instrument_;
   MeshRasterizer organ_raster_, background_raster_, instrument_raster_;
+  SmokeVeil smoke_;
   cv::Mat accum_;         // ideal image, linear RGB, CV_32FC3
   cv::Mat background_half_;  // half-resolution background radiance, CV_32FC3
   std::vector<BackgroundTap> background_taps_;  // per ideal column

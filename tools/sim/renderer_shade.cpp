@@ -206,6 +206,7 @@ void SceneRenderer::finish(int frame, cv::Mat& rgb, cv::Mat& labels) {
   const int W = settings_.K.width, H = settings_.K.height;
   const bool distorted = !settings_.distortion.is_zero();
   if (distorted) cv::remap(accum_, linear_out_, map1_, map2_, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  if (smoke_.enabled()) smoke_.apply(frame, distorted ? linear_out_ : accum_);
   const cv::Mat& lin = distorted ? linear_out_ : accum_;
   rgb.create(H, W, CV_8UC3);
   labels.create(H, W, CV_8U);

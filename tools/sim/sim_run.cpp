@@ -17,6 +17,7 @@ RenderSettings default_render(const SimOptions& o, int W, int H) {
   r.seed = o.seed;
   r.organ_detail = o.organ_detail;
   r.shutter = o.shutter;
+  r.smoke = o.smoke;
   r.exposure *= o.light;
   const bool invivo = o.scenario == ScenarioKind::InVivo;
   r.field_stop = o.field_stop < 0 ? invivo : o.field_stop == 1;

@@ -34,6 +34,7 @@ struct SimOptions {
   // times this): below 1 a dimmer scene, whose sensor noise stays that of the
   // sensor, so the signal-to-noise ratio falls as on a real camera.
   double light = 1.0;
+  double smoke = 0.0;               // RenderSettings::smoke (0: no surgical smoke)
   std::filesystem::path texture_file;  // a Y4M photo for the organ's texture; empty: procedural
   double texture_px_per_mm = PhotoTexture::kDefaultPxPerMm;
   bool progress = false;            // progress bar on stderr
