@@ -72,6 +72,8 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
   if (c.ba_lag_frames < 0 || c.ba_lag_frames > 1000) return err("ba_lag_frames outside [0, 1000]");
   if (!(c.fast_reference_luma >= 0 && c.fast_reference_luma <= 255))
     return err("fast_reference_luma must be in [0, 255] (0: off)");
+  if (!(c.fast_reference_contrast >= 0 && c.fast_reference_contrast <= 255))
+    return err("fast_reference_contrast must be in [0, 255] (0: off)");
   if (!(c.confirm_agreement_px >= 0 && c.confirm_agreement_px <= 1000))
     return err("confirm_agreement_px must be in [0, 1000]");
   if (!(c.max_rms_px > 0) || !(c.max_jump_deg > 0) || !(c.max_jump_mm > 0))

@@ -101,7 +101,8 @@ class TrackerImpl {
   int next_reloc_keyframe();
   void rank_reloc_keyframes();
   int remove_occluders_from_valid(GrayView luma, ChromaView chroma, bool* refused);
-  float fast_threshold_scale(GrayView organ) const;
+  float fast_threshold_scale(GrayView luma, GrayView organ, TrackResult* r) const;
+  double organ_contrast(GrayView luma, GrayView organ) const;
   double now_ms() const;
   void lap(Stage s, double* t_last_ms, TrackResult* r) const;
 

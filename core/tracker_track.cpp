@@ -3,6 +3,7 @@
 // (prediction, then refined pose), quality measures at the final pose and
 // the state decision. Tracking thread; allocates nothing.
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 
@@ -29,7 +30,7 @@ constexpr double kReuseRenderPx = 8.0;
 bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
   const GrayView organ = with_organ_mask && config_.use_mask && raster_valid_ ? raster_.mask() : GrayView{};
   FeatureSet& f = *features_;
-  orb_.set_threshold_scale(fast_threshold_scale(organ));
+  orb_.set_threshold_scale(fast_threshold_scale(luma, organ, r));
   r->fast_threshold_scale = orb_.threshold_scale();
   if (!orb_.extract(luma, organ, valid_view_, f)) f.clear();
   for (int k = 0; k < f.count; ++k) {
@@ -46,17 +47,73 @@ bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
   return f.count > 0;
 }
 
-// The FAST threshold scale of this frame (TrackerConfig::fast_reference_luma):
-// the median block-mean luma over the valid mask and, if given, the organ
-// mask (ValidMaskBuilder::median_block_mean), above video black (16), over
-// the reference's. 1 when off, at or above the reference, or with no pixel.
-float TrackerImpl::fast_threshold_scale(GrayView organ) const {
+// The FAST threshold scale of this frame: for a dim frame
+// (TrackerConfig::fast_reference_luma) the median block-mean luma over the
+// valid mask and, if given, the organ mask (ValidMaskBuilder::
+// median_block_mean), above video black (16), over the reference's; for a
+// veiled one (fast_reference_contrast) the organ's texture contrast over
+// the reference's; the smaller one, at most 1. 1 when both are off or
+// there is no pixel to measure. Records the contrast in r.
+float TrackerImpl::fast_threshold_scale(GrayView luma, GrayView organ, TrackResult* r) const {
   constexpr int kBlack = 16;
-  if (!(config_.fast_reference_luma > kBlack) || valid_view_.empty()) return 1.f;
-  const int median = valid_mask_.median_block_mean(valid_view_, organ);
-  if (median < 0) return 1.f;
-  const double s = static_cast<double>(median - kBlack) / (config_.fast_reference_luma - kBlack);
+  if (valid_view_.empty()) return 1.f;
+  double s = 1.0;
+  if (config_.fast_reference_luma > kBlack) {
+    const int median = valid_mask_.median_block_mean(valid_view_, organ);
+    if (median >= 0) s = std::min(1.0, static_cast<double>(median - kBlack) / (config_.fast_reference_luma - kBlack));
+  }
+  if (config_.fast_reference_contrast > 0) {
+    const double contrast = organ_contrast(luma, organ);
+    r->organ_contrast = static_cast<float>(contrast);
+    if (contrast >= 0 && contrast < s * config_.fast_reference_contrast) {
+      s = contrast / config_.fast_reference_contrast;
+      r->low_contrast = true;
+    }
+  }
   return static_cast<float>(std::clamp(s, 0.0, 1.0));
+}
+
+// The organ's texture contrast in this frame (8-bit luma units): the
+// median, over a 16-px grid of places inside the valid mask and (if given)
+// the organ mask, of |B(x+4, y) - B(x, y)| + |B(x, y+4) - B(x, y)|, B the
+// mean of the 4x4 block at (x, y). Block means keep the sensor noise out
+// (a 16th of its variance), so that what is measured is the tissue's
+// texture: a veil (surgical smoke, a fogged lens) or a dimmer light scales
+// it down with the intensity differences FAST's thresholds test. -1 when
+// no place qualifies.
+double TrackerImpl::organ_contrast(GrayView luma, GrayView organ) const {
+  constexpr int kStep = 16, kBlock = 4;
+  constexpr int kBins = 1024;  // in 1/16 luma units (block sums of 16 pixels)
+  std::array<int, kBins> hist{};
+  long long n = 0;
+  const GrayView& v = valid_view_;
+  const auto block = [&](int x, int y) {
+    int sum = 0;
+    for (int j = 0; j < kBlock; ++j) {
+      const std::uint8_t* r = luma.row(y + j) + x;
+      sum += r[0] + r[1] + r[2] + r[3];
+    }
+    return sum;
+  };
+  for (int y = 0; y + 2 * kBlock <= luma.height; y += kStep) {
+    const std::uint8_t* vrow = v.row((y + kBlock) * v.height / luma.height);
+    const std::uint8_t* orow = organ.empty() ? nullptr : organ.row((y + kBlock) * organ.height / luma.height);
+    for (int x = 0; x + 2 * kBlock <= luma.width; x += kStep) {
+      const int cx = x + kBlock;
+      if (!vrow[cx * v.width / luma.width] || (orow && !orow[cx * organ.width / luma.width])) continue;
+      const int b = block(x, y);
+      const int d = std::abs(block(x + kBlock, y) - b) + std::abs(block(x, y + kBlock) - b);
+      ++hist[static_cast<std::size_t>(std::min(d, kBins - 1))];
+      ++n;
+    }
+  }
+  if (n == 0) return -1.0;
+  long long seen = 0;
+  for (std::size_t i = 0; i < hist.size(); ++i) {
+    seen += hist[i];
+    if (2 * seen >= n) return static_cast<double>(i) / (kBlock * kBlock);
+  }
+  return -1.0;
 }
 
 // Projects every alive map point at T_camera_model into the local map

@@ -1,5 +1,5 @@
 // scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
-//   [--fast-reference-luma L] [--no-descriptor-refresh] [--ring N]:
+//   [--fast-reference-luma L] [--fast-reference-contrast C] [--no-descriptor-refresh] [--ring N]:
 // replays a sequence through the tracker (hal/replay.h) into the output
 // folder. Exit status: 0 done, 1 the sequence or the replay failed (a clear
 // message on stderr; the output written so far stays), 2 bad command line.
@@ -34,6 +34,7 @@ struct ReplayArgs {
   bool shape_ba = true;     // --no-shape-ba: BA with w_shape = 0
   int ba_lag = 0;           // --ba-lag N: deterministic BA hand-back (TrackerConfig::ba_lag_frames)
   double fast_reference_luma = TrackerConfig{}.fast_reference_luma;  // --fast-reference-luma L (0: off, the ablation)
+  double fast_reference_contrast = TrackerConfig{}.fast_reference_contrast;  // --fast-reference-contrast C (0: off)
   bool refresh_descriptors = true;  // --no-descriptor-refresh: map points keep their first descriptor (ablation)
   int ring_slots = 6;
   std::string stream;           // --stream ENDPOINT: serve consoles (firmware_app/stream_link.h)
@@ -77,6 +78,11 @@ bool parse_args(Args args, ReplayArgs* a) {
       long long luma = 0;
       if (!int_value(&i, 0, 255, "a luma in 0..255 (0: off)", &luma)) return false;
       a->fast_reference_luma = static_cast<double>(luma);
+    } else if (!std::strcmp(arg, "--fast-reference-contrast") && has_value) {
+      if (!st::parse_double_in(args[static_cast<std::size_t>(++i)], 0.0, 255.0, &a->fast_reference_contrast)) {
+        std::fprintf(stderr, "scopetrack: --fast-reference-contrast takes a contrast in 0..255 (0: off)\n");
+        return false;
+      }
     } else if (!std::strcmp(arg, "--no-descriptor-refresh")) {
       a->refresh_descriptors = false;
     } else if (!std::strcmp(arg, "--ring") && has_value) {
@@ -110,6 +116,7 @@ TrackerConfig tracker_config(const LoadedSequence& seq, const ReplayArgs& a) {
   if (!a.shape_ba) c.w_shape = 0.0;
   c.ba_lag_frames = a.ba_lag;
   c.fast_reference_luma = a.fast_reference_luma;
+  c.fast_reference_contrast = a.fast_reference_contrast;
   c.refresh_descriptors = a.refresh_descriptors;
   c.now_ns = &platform::monotonic_ns;
   return c;
@@ -153,7 +160,8 @@ int run_replay(Args argv) {
   if (!parse_args(argv, &args)) {
     std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask]"
                  " [--no-image-motion] [--no-ba]"
-                 " [--no-shape-ba] [--ba-lag N] [--fast-reference-luma L] [--no-descriptor-refresh]"
+                 " [--no-shape-ba] [--ba-lag N] [--fast-reference-luma L] [--fast-reference-contrast C]"
+                 " [--no-descriptor-refresh]"
                  " [--ring N]\n"
                  "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
     return 2;
@@ -193,6 +201,7 @@ int run_replay(Args argv) {
                        {"use_image_motion", args.use_image_motion ? 1.0 : 0.0},
                        {"w_shape", args.shape_ba ? TrackerConfig{}.w_shape : 0.0},
                        {"ba_lag_frames", args.ba_lag}, {"fast_reference_luma", args.fast_reference_luma},
+                       {"fast_reference_contrast", args.fast_reference_contrast},
                        {"refresh_descriptors", args.refresh_descriptors ? 1.0 : 0.0},
                        {"width", c.width}, {"height", c.height}};
   auto stats = run_replay(seq.value(), *processor, opt);

@@ -50,6 +50,7 @@ TrackResult TrackerProcessor::step(const FrameRef& frame) {
     ++dim_frames_;
     min_fast_scale_ = std::min(min_fast_scale_, static_cast<double>(r.fast_threshold_scale));
   }
+  low_contrast_frames_ += r.low_contrast ? 1 : 0;
   return r;
 }
 
@@ -65,6 +66,7 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
     fields->emplace_back("occluder_removed_px_mean", static_cast<double>(occluder_pixels_) / static_cast<double>(occluder_frames_));
   fields->emplace_back("dim_frames", static_cast<double>(dim_frames_));
   fields->emplace_back("min_fast_threshold_scale", min_fast_scale_);
+  fields->emplace_back("low_contrast_frames", static_cast<double>(low_contrast_frames_));
   if (!use_ba_) return;
   fields->emplace_back("ba_jobs_submitted", static_cast<double>(ba_submitted_));
   fields->emplace_back("ba_jobs_applied", static_cast<double>(ba_applied_));

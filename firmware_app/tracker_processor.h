@@ -36,7 +36,8 @@ class TrackerProcessor : public FrameProcessor {
   std::array<std::int64_t, static_cast<int>(Stage::kCount)> stage_runs_{};
   std::int64_t ba_submitted_ = 0, ba_applied_ = 0;
   std::int64_t occluder_frames_ = 0, occluder_pixels_ = 0, occluder_refused_ = 0;  // frames with an occluder mask, valid pixels removed
-  std::int64_t dim_frames_ = 0;    // frames whose FAST thresholds were scaled down (TrackerConfig::fast_reference_luma)
+  std::int64_t dim_frames_ = 0;    // frames whose FAST thresholds were scaled down (fast_reference_luma or _contrast)
+  std::int64_t low_contrast_frames_ = 0;  // of those, scaled for a flat texture (TrackerConfig::fast_reference_contrast)
   double min_fast_scale_ = 1.0;    // the smallest scale
 };
 

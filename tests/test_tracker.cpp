@@ -88,6 +88,8 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
     rejects_value(&TrackerConfig::keyframe_max_motion_px, motion, "keyframe_max_motion_px");
   for (double luma : {-1.0, 256.0, std::nan("")})
     rejects_value(&TrackerConfig::fast_reference_luma, luma, "fast_reference_luma");
+  for (double contrast : {-1.0, 256.0, std::nan("")})
+    rejects_value(&TrackerConfig::fast_reference_contrast, contrast, "fast_reference_contrast");
   for (double decay : {0.0, 1.5, std::nan("")})
     rejects_value(&TrackerConfig::dead_reckoning_decay, decay, "relocalisation settings");
   for (double v : {-0.1, 1.5, std::nan("")}) {

@@ -5,7 +5,7 @@
 // (scopetrack-sim beside this binary, orbit 1280x720, 300 frames, cached in
 // the temp folder) unless --sequence DIR is given.
 //   scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask]
-//                          [--no-occluder-mask] [--fast-reference-luma L] [--log N]
+//                          [--no-occluder-mask] [--fast-reference-luma L] [--fast-reference-contrast C] [--log N]
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -31,6 +31,7 @@ struct TrackArgs {
   bool use_mask = true;
   bool use_occluder_mask = true;
   double fast_reference_luma = TrackerConfig{}.fast_reference_luma;  // 0: FAST thresholds never scaled
+  double fast_reference_contrast = TrackerConfig{}.fast_reference_contrast;  // 0: never scaled for contrast
 };
 
 bool parse_track_args(const Options& opt, TrackArgs* a) {
@@ -45,6 +46,7 @@ bool parse_track_args(const Options& opt, TrackArgs* a) {
     else if (k == "--no-mask") a->use_mask = false;
     else if (k == "--no-occluder-mask") a->use_occluder_mask = false;
     else if (k == "--fast-reference-luma" && v) a->fast_reference_luma = std::atof(opt.args[++i].c_str());
+    else if (k == "--fast-reference-contrast" && v) a->fast_reference_contrast = std::atof(opt.args[++i].c_str());
     else return false;
   }
   return a->frames > 0;
@@ -92,6 +94,7 @@ Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, cons
   cfg.use_mask = a.use_mask;
   cfg.use_occluder_mask = a.use_occluder_mask;
   cfg.fast_reference_luma = a.fast_reference_luma;
+  cfg.fast_reference_contrast = a.fast_reference_contrast;
   cfg.now_ns = &platform::monotonic_ns;
   auto tracker = std::make_unique<Tracker>();
   const CameraModel cam(seq.config.K, seq.config.distortion);
@@ -146,7 +149,7 @@ void report_stages(const Options& opt, const TrackRun& run) {
 int bench_track(const Options& opt) {
   TrackArgs a;
   if (!parse_track_args(opt, &a)) {
-    std::fprintf(stderr, "usage: scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask] [--no-occluder-mask] [--fast-reference-luma L] [--log N]\n");
+    std::fprintf(stderr, "usage: scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask] [--no-occluder-mask] [--fast-reference-luma L] [--fast-reference-contrast C] [--log N]\n");
     return 2;
   }
   std::filesystem::path dir = a.sequence;
