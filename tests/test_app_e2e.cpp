@@ -95,11 +95,18 @@ EvalResult track_control(const std::filesystem::path& dir, const std::string& ex
   return control->result;
 }
 
-// Photo-textured manipulation, 300 frames of size and seed, simulated into
-// dir/seq and replayed deterministically into dir/out.
-EvalReport photo_manipulation_run(const std::filesystem::path& dir, const std::string& size, int seed) {
-  simulate(dir / "seq", 300, size, seed, "manipulation", photo_texture());
+// Photo-textured scenario (sim_extra: more scopetrack-sim options), frames
+// of size and seed, simulated into dir/seq and replayed deterministically
+// into dir/out.
+EvalReport photo_run(const std::filesystem::path& dir, int frames, const std::string& size, int seed,
+                     const std::string& scenario, const std::string& sim_extra = "") {
+  simulate(dir / "seq", frames, size, seed, scenario, sim_extra + photo_texture());
   return track_evaluate(dir, kDeterministic);
+}
+
+// Photo-textured manipulation, 300 frames of size and seed.
+EvalReport photo_manipulation_run(const std::filesystem::path& dir, const std::string& size, int seed) {
+  return photo_run(dir, 300, size, seed, "manipulation");
 }
 
 // Initialised, no wrong pose, and lost / TRE median / TRE p95 within bounds.
@@ -146,9 +153,7 @@ TEST_CASE(
 TEST_CASE("app_e2e: tissue from the real liver photo (orbit, 640x360) is tracked without drift" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_photo");
-  simulate(dir / "seq", 300, "640x360", 1, "orbit", photo_texture());
-  const EvalReport report = track_evaluate(dir, kDeterministic);
-  check_run(report.result, 3.0, 1.5, 5.0);
+  check_run(photo_run(dir, 300, "640x360", 1, "orbit").result, 3.0, 1.5, 5.0);
 }
 
 // A dim scene: the same photo tissue with the scope light at 0.3
@@ -161,9 +166,7 @@ TEST_CASE("app_e2e: tissue from the real liver photo (orbit, 640x360) is tracked
 TEST_CASE("app_e2e: a dim scene (photo tissue, light 0.3, 640x360): FAST thresholds follow the light" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_dim");
-  simulate(dir / "seq", 150, "640x360", 1, "orbit", " --light 0.3" + photo_texture());
-  const EvalReport scaled = track_evaluate(dir, kDeterministic);
-  check_run(scaled.result, 3.0, 2.5, 6.0);
+  check_run(photo_run(dir, 150, "640x360", 1, "orbit", " --light 0.3").result, 3.0, 2.5, 6.0);
   CHECK(summary_number(dir / "out", "dim_frames") >= 140);
   CHECK(summary_number(dir / "out", "min_fast_threshold_scale") < 0.7);
   const EvalResult control =
@@ -184,9 +187,7 @@ TEST_CASE("app_e2e: a dim scene (photo tissue, light 0.3, 640x360): FAST thresho
 TEST_CASE("app_e2e: surgical smoke over photo tissue (manipulation seed 2, 640x360): FAST follows the contrast" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_smoke");
-  simulate(dir / "seq", 300, "640x360", 2, "manipulation", " --smoke 0.8" + photo_texture());
-  const EvalReport scaled = track_evaluate(dir, kDeterministic);
-  check_run(scaled.result, 3.0, 4.0, 10.0);
+  check_run(photo_run(dir, 300, "640x360", 2, "manipulation", " --smoke 0.8").result, 3.0, 4.0, 10.0);
   CHECK(summary_number(dir / "out", "low_contrast_frames") >= 50);
   const EvalResult control = track_control(dir, " --fast-reference-contrast 0", "FAST thresholds not scaled by contrast");
   CHECK(summary_number(dir / "control", "low_contrast_frames") == 0);
