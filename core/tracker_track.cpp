@@ -7,6 +7,7 @@
 #include <bit>
 #include <cmath>
 
+#include "core/histogram_rank.h"
 #include "core/tracker_impl.h"
 
 namespace st {
@@ -90,8 +91,8 @@ double TrackerImpl::organ_contrast(GrayView luma, GrayView organ) const {
   const auto block = [&](int x, int y) {
     int sum = 0;
     for (int j = 0; j < kBlock; ++j) {
-      const std::uint8_t* r = luma.row(y + j) + x;
-      sum += r[0] + r[1] + r[2] + r[3];
+      const std::uint8_t* row = luma.row(y + j) + x;
+      for (int i = 0; i < kBlock; ++i) sum += row[i];
     }
     return sum;
   };
@@ -108,12 +109,7 @@ double TrackerImpl::organ_contrast(GrayView luma, GrayView organ) const {
     }
   }
   if (n == 0) return -1.0;
-  long long seen = 0;
-  for (std::size_t i = 0; i < hist.size(); ++i) {
-    seen += hist[i];
-    if (2 * seen >= n) return static_cast<double>(i) / (kBlock * kBlock);
-  }
-  return -1.0;
+  return static_cast<double>(histogram_rank(hist, (n - 1) / 2)) / (kBlock * kBlock);
 }
 
 // Projects every alive map point at T_camera_model into the local map

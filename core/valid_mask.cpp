@@ -5,24 +5,12 @@
 #include <bit>
 #include <string>
 
+#include "core/histogram_rank.h"
 #include "core/mask_morphology.h"
 
 #include <opencv2/core/hal/intrin.hpp>
 
 namespace st {
-
-namespace {
-
-// The value below which at most `rank` of the histogram's samples lie: the
-// first bin whose cumulative count exceeds rank (255 if none).
-int histogram_rank(const std::array<int, 256>& hist, long long rank) {
-  long long acc = 0;
-  int level = 0;
-  while (level < 255 && acc + hist[static_cast<std::size_t>(level)] <= rank) acc += hist[static_cast<std::size_t>(level++)];
-  return level;
-}
-
-}  // namespace
 
 Status ValidMaskBuilder::configure(const ValidMaskConfig& c, int width, int height) {
   if (c.downscale != 1 && c.downscale != 2 && c.downscale != 4)
