@@ -185,7 +185,6 @@ struct TrackResult {
   bool occluder_refused = false;  // the mask covered most of the organ (its own colour): not used
   float fast_threshold_scale = 1.f;  // FAST thresholds scaled for a dim or veiled frame (fast_reference_luma,
                                      // fast_reference_contrast)
-  float organ_contrast = -1.f;       // this frame's texture contrast (fast_reference_contrast); -1: not measured
   bool low_contrast = false;         // the contrast, not the luma, set fast_threshold_scale
 };
 

@@ -54,7 +54,8 @@ bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
 // median_block_mean), above video black (16), over the reference's; for a
 // veiled one (fast_reference_contrast) the organ's texture contrast over
 // the reference's; the smaller one, at most 1. 1 when both are off or
-// there is no pixel to measure. Records the contrast in r.
+// there is no pixel to measure. Sets r->low_contrast when the contrast's
+// scale is the one taken.
 float TrackerImpl::fast_threshold_scale(GrayView luma, GrayView organ, TrackResult* r) const {
   constexpr int kBlack = 16;
   if (valid_view_.empty()) return 1.f;
@@ -65,7 +66,6 @@ float TrackerImpl::fast_threshold_scale(GrayView luma, GrayView organ, TrackResu
   }
   if (config_.fast_reference_contrast > 0) {
     const double contrast = organ_contrast(luma, organ);
-    r->organ_contrast = static_cast<float>(contrast);
     if (contrast >= 0 && contrast < s * config_.fast_reference_contrast) {
       s = contrast / config_.fast_reference_contrast;
       r->low_contrast = true;
