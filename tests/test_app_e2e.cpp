@@ -392,5 +392,12 @@ TEST_CASE("app_e2e: sequences --check refuses are refused before tracking with a
       CHECK(err.find("--ba-lag takes a whole number of frames in 1..1000") != std::string::npos);
       CHECK_FALSE(std::filesystem::exists(dir / "out_lag" / "summary.json"));
     }
+    for (const char* contrast : {"-1", "256", "nan", "inf", "3x", "''", "1e"}) {
+      CAPTURE(contrast);
+      std::string err;
+      CHECK(track(dir / "seq", dir / "out_contrast", &err, std::string(" --fast-reference-contrast ") + contrast) == 2);
+      CHECK(err.find("--fast-reference-contrast takes a contrast in 0..255") != std::string::npos);
+      CHECK_FALSE(std::filesystem::exists(dir / "out_contrast" / "summary.json"));
+    }
   }
 }
