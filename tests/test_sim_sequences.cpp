@@ -249,6 +249,7 @@ TEST_CASE("sim CLI: --shutter, --organ-detail and --smoke refuse what is not a n
     for (const char* bad : {"nan", "-0.1", "3", "0.5x", "''", "1e"}) refused(opt, bad);
   refused("--smoke", "0.95");  // a veil that hides everything
   for (const char* bad : {"nan", "-0.1", "0", "2000", "0.5x", "''", "1e"}) refused("--texture-scale", bad);
+  for (const char* bad : {"-1", "4", "1.5", "x", "''"}) refused("--prior-subdivide", bad);
   // A texture that is no photo: a clear error naming it, nothing written.
   {
     std::ofstream(dir / "not.y4m") << "P5 no video";
@@ -259,4 +260,14 @@ TEST_CASE("sim CLI: --shutter, --organ-detail and --smoke refuse what is not a n
   CHECK(st::test::run_shell(cmd) == 1);
   CHECK(st::test::read_file_bytes(log).find("not.y4m") != std::string::npos);
   CHECK_FALSE(std::filesystem::exists(dir / "seq" / "video.y4m"));
+}
+
+TEST_CASE("sim and console CLI: --help prints the usage on stdout and exits 0") {
+  const auto dir = st::test::scratch_dir("cli_help");
+  for (const char* tool : {"scopetrack-sim", "scopetrack-console"}) {
+    CAPTURE(tool);
+    const auto out = dir / (std::string(tool) + ".out");
+    CHECK(st::test::run_shell(st::test::bin_command(tool) + " --help > " + st::test::shell_quoted(out) + " 2>&1") == 0);
+    CHECK(st::test::read_file_bytes(out).rfind("usage: ", 0) == 0);
+  }
 }

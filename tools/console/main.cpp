@@ -107,10 +107,14 @@ int receive(int fd, st::console::ConsoleSession& session, bool live) {
 
 int main(int argc, char** argv) {
   Args args;
+  const char* usage =
+      "usage: scopetrack-console tcp://HOST:PORT|unix:PATH [--record DIR] [--mesh FILE] [--connect-timeout S]\n";
+  if (argc == 2 && (!std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h"))) {
+    std::fputs(usage, stdout);
+    return 0;
+  }
   if (!parse(argc, argv, &args)) {
-    std::fprintf(stderr,
-                 "usage: scopetrack-console tcp://HOST:PORT|unix:PATH [--record DIR] [--mesh FILE]"
-                 " [--connect-timeout S]\n");
+    std::fputs(usage, stderr);
     return 2;
   }
   st::platform::Endpoint ep;

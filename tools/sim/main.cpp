@@ -1,7 +1,7 @@
 // scopetrack-sim: writes a synthetic laparoscopic sequence with exact
 // ground truth (docs/sequence-format.md).
 //   scopetrack-sim --scenario NAME --out DIR [--frames N] [--size WxH]
-//                  [--seed S] [--mesh FILE] [--field-stop on|off] [--organ-detail F]
+//                  [--seed S] [--mesh FILE] [--prior-subdivide N] [--field-stop on|off] [--organ-detail F]
 //                  [--shutter F] [--light F] [--smoke F] [--texture FILE.y4m] [--texture-scale PX_PER_MM]
 #include <cstdio>
 #include <cstdlib>
@@ -13,11 +13,13 @@
 
 namespace {
 
-void usage() {
-  std::fprintf(stderr,
+void usage(std::FILE* to) {
+  std::fprintf(to,
                "usage: scopetrack-sim --scenario orbit|fast|outofview|manipulation|invivo --out DIR\n"
                "                      [--frames N (300)] [--size WxH (1280x720; invivo 960x540)]\n"
                "                      [--seed S (1)] [--mesh FILE.ply|stl] [--field-stop on|off]\n"
+               "                      [--prior-subdivide N (0; organ.ply split N times at edge midpoints:\n"
+               "                       the same surface, 4^N times the triangles, as a dense CT export)]\n"
                "                      [--organ-detail F (1; lower = smoother tissue)]\n"
                "                      [--shutter F (0.5 of the frame interval; 0 = no motion blur)]\n"
                "                      [--light F (1: the scope light's power; lower = a dimmer, noisier scene)]\n"
@@ -57,6 +59,9 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
       o->seed = static_cast<std::uint64_t>(n);
     } else if (a == "--mesh") {
       o->mesh_file = std::string(v);
+    } else if (a == "--prior-subdivide") {
+      if (!st::parse_int64_in(v, 0, 3, &n)) return "--prior-subdivide wants 0..3 (each level: 4 times the triangles)";
+      o->prior_subdivide = static_cast<int>(n);
     } else if (a == "--organ-detail") {
       if (!st::parse_double_in(v, 0.0, st::sim::kMaxOrganDetail, &o->organ_detail))
         return "--organ-detail wants a number in 0..2 (1: the calibrated tissue texture)";
@@ -91,9 +96,13 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
 int main(int argc, char** argv) {
   st::sim::SimOptions options;
   options.progress = true;
+  if (argc == 2 && (std::string_view(argv[1]) == "--help" || std::string_view(argv[1]) == "-h")) {
+    usage(stdout);
+    return 0;
+  }
   if (const std::string err = parse_args(argc, argv, &options); !err.empty()) {
     std::fprintf(stderr, "scopetrack-sim: %s\n", err.c_str());
-    usage();
+    usage(stderr);
     return 2;
   }
   const auto report = st::sim::run_simulation(options);

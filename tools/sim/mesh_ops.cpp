@@ -79,6 +79,32 @@ void append_mesh(Mesh& a, const Mesh& b) {
   for (const std::int32_t v : b.tri) a.tri.push_back(v + base);
 }
 
+Mesh subdivide(const Mesh& mesh, int levels) {
+  Mesh m = mesh;
+  for (int level = 0; level < levels; ++level) {
+    std::unordered_map<std::uint64_t, std::int32_t> midpoint;
+    midpoint.reserve(m.tri.size());
+    const auto mid = [&](std::int32_t a, std::int32_t b) {
+      const auto key = (static_cast<std::uint64_t>(std::min(a, b)) << 32) | static_cast<std::uint32_t>(std::max(a, b));
+      const auto [it, inserted] = midpoint.emplace(key, m.vertex_count());
+      if (inserted) {
+        const Vec3 p = 0.5 * (m.vertex(a) + m.vertex(b));
+        m.add_vertex(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+      }
+      return it->second;
+    };
+    std::vector<std::int32_t> tri;
+    tri.reserve(m.tri.size() * 4);
+    for (std::size_t t = 0; t + 2 < m.tri.size(); t += 3) {
+      const std::int32_t a = m.tri[t], b = m.tri[t + 1], c = m.tri[t + 2];
+      const std::int32_t ab = mid(a, b), bc = mid(b, c), ca = mid(c, a);
+      for (const std::int32_t v : {a, ab, ca, ab, b, bc, ca, bc, c, ab, bc, ca}) tri.push_back(v);
+    }
+    m.tri = std::move(tri);
+  }
+  return m;
+}
+
 void perturb_along_normals(Mesh& m, double amplitude_mm, std::uint64_t seed) {
   const std::vector<Vec3f> n = vertex_normals(m);
   const Noise3 noise(seed);

@@ -35,6 +35,11 @@ void append_mesh(Mesh& a, const Mesh& b);
 // link condition and a no-fold check allow). Keeps a closed mesh closed and
 // consistently oriented.
 Mesh decimate(const Mesh& mesh, int target_triangles);
+// Every triangle split into four at its edge midpoints, levels times: the
+// same surface with 4^levels times the triangles (a segmentation exported
+// at full density). Shared edges share their midpoint: a closed mesh stays
+// closed, windings are kept.
+Mesh subdivide(const Mesh& mesh, int levels);
 // Displaces every vertex along its normal by a smooth random field in
 // [-amplitude_mm, amplitude_mm] (wavelength ~20 mm): segmentation error.
 void perturb_along_normals(Mesh& mesh, double amplitude_mm, std::uint64_t seed);

@@ -59,6 +59,7 @@ Result<SimSetup> make_setup(const SimOptions& o) {
     s.prior = decimate(s.scene.organ, s.scene.organ.triangle_count() / 2);
     perturb_along_normals(s.prior, 1.0, o.seed + 31);
   }
+  if (o.prior_subdivide > 0) s.prior = subdivide(s.prior, o.prior_subdivide);
   s.render = default_render(o, W, H);
   if (!o.texture_file.empty()) {
     auto photo = PhotoTexture::load(o.texture_file, o.texture_px_per_mm);

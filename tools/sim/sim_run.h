@@ -27,6 +27,7 @@ struct SimOptions {
   int width = 0, height = 0;  // 0: the scenario's default (1280x720; invivo 960x540)
   std::uint64_t seed = 1;
   std::filesystem::path mesh_file;  // empty: the procedural liver
+  int prior_subdivide = 0;          // organ.ply subdivided this many times (same surface, 4^N triangles)
   int field_stop = -1;              // -1: scenario default (invivo only), 0 off, 1 on
   double organ_detail = 1.0;        // RenderSettings::organ_detail (1: calibrated on the real liver)
   double shutter = kDefaultShutter; // RenderSettings::shutter (0: no motion blur)
