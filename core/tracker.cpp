@@ -6,6 +6,7 @@
 #include <string>
 
 #include "core/capacity.h"
+#include "core/mesh_simplify.h"
 #include "core/tracker_impl.h"
 
 namespace st {
@@ -61,6 +62,9 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
                std::to_string(kMaxMapPoints) + "]");
   if (c.raster_downscale != 1 && c.raster_downscale != 2 && c.raster_downscale != 4)
     return err("raster_downscale must be 1, 2 or 4");
+  if (c.max_raster_triangles != 0 && (c.max_raster_triangles < 1000 || c.max_raster_triangles > kMaxMeshTriangles))
+    return err("max_raster_triangles " + std::to_string(c.max_raster_triangles) + " outside [1000, " +
+               std::to_string(kMaxMeshTriangles) + "] (0: never simplify)");
   if (c.mask_margin_px < -256 || c.mask_margin_px > 256) return err("mask_margin_px outside [-256, 256]");
   if (c.min_inliers < 6) return err("min_inliers must be >= 6 (a pose has 6 degrees of freedom)");
   if (!(c.min_inlier_ratio >= 0 && c.min_inlier_ratio <= 1) || !(c.min_mask_agreement >= 0 && c.min_mask_agreement <= 1))
@@ -110,7 +114,15 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   rc.width = config.width;
   rc.height = config.height;
   rc.downscale = config.raster_downscale;
-  if (Status s = raster_.configure(mesh, rc); !s.ok()) return make_error("tracker: raster: " + s.message());
+  if (config.max_raster_triangles > 0 && mesh.triangle_count() > config.max_raster_triangles) {
+    auto simplified = simplify_to_budget(mesh, config.max_raster_triangles);
+    if (!simplified) return make_error("tracker: " + simplified.message());
+    if (Status s = raster_.configure(simplified.value(), rc); !s.ok()) return make_error("tracker: raster: " + s.message());
+    raster_triangles_ = simplified->triangle_count();
+  } else {
+    if (Status s = raster_.configure(mesh, rc); !s.ok()) return make_error("tracker: raster: " + s.message());
+    raster_triangles_ = mesh.triangle_count();
+  }
   if (Status s = valid_mask_.configure(ValidMaskConfig{}, config.width, config.height); !s.ok())
     return make_error("tracker: valid mask: " + s.message());
   // The occluder mask is at the chroma's resolution, the valid mask's (1/2).
@@ -326,6 +338,8 @@ TrackResult Tracker::step(GrayView luma, int frame_index, ChromaView chroma) {
 void Tracker::stop() {
   if (impl_) impl_->stop();
 }
+
+int Tracker::raster_triangles() const { return impl_ ? impl_->raster_triangles() : 0; }
 
 int Tracker::map_points(Vec3* p_model, int capacity) const {
   if (!impl_) return 0;

@@ -44,6 +44,13 @@ struct TrackerConfig {
   // Pseudo-segmentation.
   bool use_mask = true;            // false: --no-mask ablation (whole valid image)
   int raster_downscale = 2;        // mask/depth raster at 1/2 resolution
+  // The per-frame render (mask, depth for new map points, dead reckoning's
+  // reference depth) uses the mesh simplified to at most this many
+  // triangles (core/mesh_simplify.h): a segmentation exported as it is can
+  // hold hundreds of thousands, and the render's cost grows with them. The
+  // shape residual in BA and the texturing keep the mesh as given. 0: never
+  // simplify.
+  int max_raster_triangles = 40000;
   // Organ mask margin, full-resolution pixels: > 0 dilates, < 0 erodes.
   // A little inside: the prior and the predicted pose are never exact.
   int mask_margin_px = -4;
@@ -218,6 +225,10 @@ class Tracker {
   // points of up to capacity alive map points to p_model; returns how many
   // were written. 0 before configure().
   int map_points(Vec3* p_model, int capacity) const;
+  // Triangles of the mesh the tracker renders every frame (the given mesh's
+  // count unless it was simplified; TrackerConfig::max_raster_triangles).
+  // 0 before configure().
+  int raster_triangles() const;
 
  private:
   TrackerImpl* impl_ = nullptr;  // allocated in configure()

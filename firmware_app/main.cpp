@@ -20,7 +20,7 @@ int run_help(st::app::Args);
 constexpr std::array kCommands = {
     st::app::Command{"--check", "DIR", "validate a sequence folder and say whether it is usable",
                      st::app::run_check},
-    st::app::Command{"--sequence", "DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--ring N] [--stream EP]",
+    st::app::Command{"--sequence", "DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--w-shape W] [--max-raster-triangles N] [--ring N] [--stream EP]",
                      "replay a sequence through the tracker: trajectory.txt, frames.csv, summary.json in --out",
                      st::app::run_replay},
     st::app::Command{"--camera", "ID --mesh FILE --calibration FILE [--out DIR] [--ring N] [--no-mask]",

@@ -10,6 +10,7 @@
 #include <string>
 #include <unistd.h>
 
+#include "core/capacity.h"
 #include "core/text_scan.h"
 #include "firmware_app/cli.h"
 #include "firmware_app/stream_link.h"
@@ -32,6 +33,8 @@ struct ReplayArgs {
                                  // poses (ablation)
   bool use_ba = true;       // --no-ba: no bundle adjustment (tracking and mesh-depth points only)
   bool shape_ba = true;     // --no-shape-ba: BA with w_shape = 0
+  double w_shape = TrackerConfig{}.w_shape;  // --w-shape W: the shape residual's weight
+  int max_raster_triangles = TrackerConfig{}.max_raster_triangles;  // --max-raster-triangles N (0: never simplify)
   int ba_lag = 0;           // --ba-lag N: deterministic BA hand-back (TrackerConfig::ba_lag_frames)
   double fast_reference_luma = TrackerConfig{}.fast_reference_luma;  // --fast-reference-luma L (0: off, the ablation)
   double fast_reference_contrast = TrackerConfig{}.fast_reference_contrast;  // --fast-reference-contrast C (0: off)
@@ -70,6 +73,20 @@ bool parse_args(Args args, ReplayArgs* a) {
       a->use_ba = false;
     } else if (!std::strcmp(arg, "--no-shape-ba")) {
       a->shape_ba = false;
+    } else if (!std::strcmp(arg, "--w-shape") && has_value) {
+      if (!st::parse_double_in(args[static_cast<std::size_t>(++i)], 0.0, 1e6, &a->w_shape)) {
+        std::fprintf(stderr, "scopetrack: --w-shape takes a weight in 0..1e6 (0: no shape residual)\n");
+        return false;
+      }
+    } else if (!std::strcmp(arg, "--max-raster-triangles") && has_value) {
+      const char* wants = "0 (never simplify) or a triangle count in 1000..4000000";
+      long long n = 0;
+      if (!int_value(&i, 0, st::kMaxMeshTriangles, wants, &n)) return false;
+      if (n > 0 && n < 1000) {
+        std::fprintf(stderr, "scopetrack: --max-raster-triangles takes %s\n", wants);
+        return false;
+      }
+      a->max_raster_triangles = static_cast<int>(n);
     } else if (!std::strcmp(arg, "--ba-lag") && has_value) {
       long long lag = 0;
       if (!int_value(&i, 1, 1000, "a whole number of frames in 1..1000", &lag)) return false;
@@ -113,7 +130,8 @@ TrackerConfig tracker_config(const LoadedSequence& seq, const ReplayArgs& a) {
   c.use_occluder_mask = a.use_occluder_mask;
   c.use_ba = a.use_ba;
   c.use_image_motion = a.use_image_motion;
-  if (!a.shape_ba) c.w_shape = 0.0;
+  c.w_shape = a.shape_ba ? a.w_shape : 0.0;
+  c.max_raster_triangles = a.max_raster_triangles;
   c.ba_lag_frames = a.ba_lag;
   c.fast_reference_luma = a.fast_reference_luma;
   c.fast_reference_contrast = a.fast_reference_contrast;
@@ -199,7 +217,7 @@ int run_replay(Args argv) {
   opt.summary_extra = {{"use_mask", args.use_mask ? 1.0 : 0.0},
                        {"use_occluder_mask", args.use_occluder_mask ? 1.0 : 0.0}, {"use_ba", args.use_ba ? 1.0 : 0.0},
                        {"use_image_motion", args.use_image_motion ? 1.0 : 0.0},
-                       {"w_shape", args.shape_ba ? TrackerConfig{}.w_shape : 0.0},
+                       {"w_shape", args.shape_ba ? args.w_shape : 0.0},
                        {"ba_lag_frames", args.ba_lag}, {"fast_reference_luma", args.fast_reference_luma},
                        {"fast_reference_contrast", args.fast_reference_contrast},
                        {"refresh_descriptors", args.refresh_descriptors ? 1.0 : 0.0},

@@ -10,9 +10,10 @@ Status TrackerProcessor::configure(const TrackerConfig& config, const Mesh& mesh
   stage_runs_.fill(0);
   ba_submitted_ = ba_applied_ = 0;
   occluder_frames_ = occluder_pixels_ = occluder_refused_ = 0;
-  dim_frames_ = 0;
+  dim_frames_ = low_contrast_frames_ = 0;
   min_fast_scale_ = 1.0;
   use_ba_ = false;
+  mesh_triangles_ = mesh.triangle_count();
   if (Status s = tracker_.configure(config, mesh, camera, T_camera_model_init); !s.ok()) return s;
   if (config.use_ba) {
     if (Status s = mapping_.configure(config, mesh, camera.pinhole()); !s.ok()) return s;
@@ -60,6 +61,8 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
     const std::string name = to_string(static_cast<Stage>(i));
     fields->emplace_back("stage_" + name + "_mean_ms", stage_sum_ms_[i] / static_cast<double>(stage_runs_[i]));
   }
+  fields->emplace_back("mesh_triangles", static_cast<double>(mesh_triangles_));
+  fields->emplace_back("raster_triangles", static_cast<double>(tracker_.raster_triangles()));
   fields->emplace_back("occluder_mask_frames", static_cast<double>(occluder_frames_));
   fields->emplace_back("occluder_refused_frames", static_cast<double>(occluder_refused_));
   if (occluder_frames_ > 0)

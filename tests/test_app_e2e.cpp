@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "core/sequence.h"
+#include "core/tracker.h"
 #include "hal/file_io.h"
 #include "hal/sequence_loader.h"
 #include "platform/realtime.h"
@@ -136,6 +137,32 @@ TEST_CASE(
   CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);
   // The mapping thread yields to the tracking thread on a shared core.
   CHECK(summary_number(dir / "out", "ba_thread_nice") >= platform::kBackgroundWorkerNice);
+}
+
+// A prior exported at full density: the CT liver of shared/data split
+// twice at its edge midpoints (scopetrack-sim --prior-subdivide 2: the
+// same surface, 320k triangles). The tracker renders a simplified copy of
+// at most TrackerConfig::max_raster_triangles every frame
+// (core/mesh_simplify.h); the shape residual keeps the full mesh. Tracking
+// stays as accurate as on the 20k-triangle original (README, "A dense
+// prior").
+TEST_CASE("app_e2e: a dense prior (the CT liver at 320k triangles) is simplified for the per-frame render" *
+          doctest::timeout(test::budget_s(300))) {
+  const auto dir = test::scratch_dir("app_e2e_dense_prior");
+  simulate(dir / "seq", 120, "480x270", 2, "orbit",
+           " --prior-subdivide 2 --mesh " + test::shell_quoted(test::shared_data("liver/liver.ply")));
+  const EvalReport report = track_evaluate(dir, kDeterministic);
+  check_run(report.result, 0.0, 1.0, 2.0);
+  CHECK(summary_number(dir / "out", "mesh_triangles") == 320000);
+  const double rendered = summary_number(dir / "out", "raster_triangles");
+  CHECK(rendered <= TrackerConfig{}.max_raster_triangles);
+  CHECK(rendered >= 20000);
+  CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);
+  // The control renders all 320k triangles: the same poses within noise.
+  const EvalResult control = track_control(dir, " --max-raster-triangles 0", "every triangle rendered");
+  CHECK(summary_number(dir / "control", "raster_triangles") == 320000);
+  CHECK(control.lost_pct == 0.0);
+  CHECK(report.result.tre_median_px < control.tre_median_px + 0.5);
 }
 
 // Tissue from a real photo (scopetrack-sim --texture: the real liver
@@ -391,6 +418,21 @@ TEST_CASE("app_e2e: sequences --check refuses are refused before tracking with a
       CHECK(track(dir / "seq", dir / "out_lag", &err, std::string(" --ba-lag ") + lag) == 2);
       CHECK(err.find("--ba-lag takes a whole number of frames in 1..1000") != std::string::npos);
       CHECK_FALSE(std::filesystem::exists(dir / "out_lag" / "summary.json"));
+    }
+    for (const char* w : {"-1", "1e7", "nan", "inf", "3x", "''"}) {
+      CAPTURE(w);
+      std::string err;
+      CHECK(track(dir / "seq", dir / "out_w", &err, std::string(" --w-shape ") + w) == 2);
+      CHECK(err.find("--w-shape takes a weight in 0..1e6") != std::string::npos);
+      CHECK_FALSE(std::filesystem::exists(dir / "out_w" / "summary.json"));
+    }
+    for (const char* n : {"-1", "999", "4000001", "3x", "''", "1e4"}) {
+      CAPTURE(n);
+      std::string err;
+      CHECK(track(dir / "seq", dir / "out_tri", &err, std::string(" --max-raster-triangles ") + n) == 2);
+      CHECK(err.find("--max-raster-triangles takes 0 (never simplify) or a triangle count in 1000..4000000") !=
+            std::string::npos);
+      CHECK_FALSE(std::filesystem::exists(dir / "out_tri" / "summary.json"));
     }
     for (const char* contrast : {"-1", "256", "nan", "inf", "3x", "''", "1e"}) {
       CAPTURE(contrast);

@@ -5,7 +5,8 @@
 // (scopetrack-sim beside this binary, orbit 1280x720, 300 frames, cached in
 // the temp folder) unless --sequence DIR is given.
 //   scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask]
-//                          [--no-occluder-mask] [--fast-reference-luma L] [--fast-reference-contrast C] [--log N]
+//                          [--no-occluder-mask] [--fast-reference-luma L] [--fast-reference-contrast C]
+//                          [--max-raster-triangles N] [--prior-subdivide N] [--log N]
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -32,6 +33,8 @@ struct TrackArgs {
   bool use_occluder_mask = true;
   double fast_reference_luma = TrackerConfig{}.fast_reference_luma;  // 0: FAST thresholds never scaled
   double fast_reference_contrast = TrackerConfig{}.fast_reference_contrast;  // 0: never scaled for contrast
+  int max_raster_triangles = TrackerConfig{}.max_raster_triangles;
+  int prior_subdivide = 0;  // the simulated sequence's organ.ply split this many times (scopetrack-sim --prior-subdivide)
 };
 
 bool parse_track_args(const Options& opt, TrackArgs* a) {
@@ -47,6 +50,8 @@ bool parse_track_args(const Options& opt, TrackArgs* a) {
     else if (k == "--no-occluder-mask") a->use_occluder_mask = false;
     else if (k == "--fast-reference-luma" && v) a->fast_reference_luma = std::atof(opt.args[++i].c_str());
     else if (k == "--fast-reference-contrast" && v) a->fast_reference_contrast = std::atof(opt.args[++i].c_str());
+    else if (k == "--max-raster-triangles" && v) a->max_raster_triangles = std::atoi(opt.args[++i].c_str());
+    else if (k == "--prior-subdivide" && v) a->prior_subdivide = std::atoi(opt.args[++i].c_str());
     else return false;
   }
   return a->frames > 0;
@@ -55,13 +60,15 @@ bool parse_track_args(const Options& opt, TrackArgs* a) {
 // A simulated sequence in the temp folder (made once, then reused).
 Result<std::filesystem::path> simulated_sequence(const Options& opt, const TrackArgs& a) {
   const auto dir = std::filesystem::temp_directory_path() /
-                   ("scopetrack-bench-track-" + a.scenario + "-" + a.size + "-" + std::to_string(a.frames));
+                   ("scopetrack-bench-track-" + a.scenario + "-" + a.size + "-" + std::to_string(a.frames) +
+                    (a.prior_subdivide > 0 ? "-sub" + std::to_string(a.prior_subdivide) : ""));
   std::error_code ec;
   if (std::filesystem::exists(dir / "sequence.yaml", ec)) return dir;
   const auto sim = std::filesystem::read_symlink("/proc/self/exe", ec).parent_path() / "scopetrack-sim";
   if (!std::filesystem::exists(sim, ec)) return make_error("scopetrack-sim not found beside the bench: " + sim.string());
   const std::string cmd = "'" + sim.string() + "' --scenario " + a.scenario + " --size " + a.size + " --frames " +
-                          std::to_string(a.frames) + " --seed 1 --out '" + dir.string() + "' >/dev/null";
+                          std::to_string(a.frames) + " --seed 1 --prior-subdivide " + std::to_string(a.prior_subdivide) +
+                          " --out '" + dir.string() + "' >/dev/null";
   info(opt, "simulating: " + cmd);
   if (std::system(cmd.c_str()) != 0) {
     std::filesystem::remove_all(dir, ec);
@@ -95,10 +102,13 @@ Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, cons
   cfg.use_occluder_mask = a.use_occluder_mask;
   cfg.fast_reference_luma = a.fast_reference_luma;
   cfg.fast_reference_contrast = a.fast_reference_contrast;
+  cfg.max_raster_triangles = a.max_raster_triangles;
   cfg.now_ns = &platform::monotonic_ns;
   auto tracker = std::make_unique<Tracker>();
   const CameraModel cam(seq.config.K, seq.config.distortion);
   if (Status s = tracker->configure(cfg, seq.mesh, cam, seq.config.T_camera_model_init); !s) return Error{s.message()};
+  info(opt, "mesh " + std::to_string(seq.mesh.triangle_count()) + " triangles, rendered every frame as " +
+                std::to_string(tracker->raster_triangles()));
   Y4mReader reader;
   if (Status s = reader.open(seq.video_path, 2); !s) return Error{s.message()};
   TrackRun run;
@@ -149,7 +159,7 @@ void report_stages(const Options& opt, const TrackRun& run) {
 int bench_track(const Options& opt) {
   TrackArgs a;
   if (!parse_track_args(opt, &a)) {
-    std::fprintf(stderr, "usage: scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask] [--no-occluder-mask] [--fast-reference-luma L] [--fast-reference-contrast C] [--log N]\n");
+    std::fprintf(stderr, "usage: scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask] [--no-occluder-mask] [--fast-reference-luma L] [--fast-reference-contrast C] [--max-raster-triangles N] [--prior-subdivide N] [--log N]\n");
     return 2;
   }
   std::filesystem::path dir = a.sequence;
