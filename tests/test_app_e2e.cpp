@@ -412,34 +412,22 @@ TEST_CASE("app_e2e: sequences --check refuses are refused before tracking with a
                           test::shell_quoted(dir / "seq") + " 2> /dev/null") == 2);  // no --out
     CHECK(test::run_shell(test::bin_command("scopetrack") + " --sequence " +
                           test::shell_quoted(dir / "seq") + " --out x --fast 2> /dev/null") == 2);
-    for (const char* lag : {"0", "-1", "1001", "3x", "''", "1e2"}) {
-      CAPTURE(lag);
-      std::string err;
-      CHECK(track(dir / "seq", dir / "out_lag", &err, std::string(" --ba-lag ") + lag) == 2);
-      CHECK(err.find("--ba-lag takes a whole number of frames in 1..1000") != std::string::npos);
-      CHECK_FALSE(std::filesystem::exists(dir / "out_lag" / "summary.json"));
-    }
-    for (const char* w : {"-1", "1e7", "nan", "inf", "3x", "''"}) {
-      CAPTURE(w);
-      std::string err;
-      CHECK(track(dir / "seq", dir / "out_w", &err, std::string(" --w-shape ") + w) == 2);
-      CHECK(err.find("--w-shape takes a weight in 0..1e6") != std::string::npos);
-      CHECK_FALSE(std::filesystem::exists(dir / "out_w" / "summary.json"));
-    }
-    for (const char* n : {"-1", "999", "4000001", "3x", "''", "1e4"}) {
-      CAPTURE(n);
-      std::string err;
-      CHECK(track(dir / "seq", dir / "out_tri", &err, std::string(" --max-raster-triangles ") + n) == 2);
-      CHECK(err.find("--max-raster-triangles takes 0 (never simplify) or a triangle count in 1000..4000000") !=
-            std::string::npos);
-      CHECK_FALSE(std::filesystem::exists(dir / "out_tri" / "summary.json"));
-    }
-    for (const char* contrast : {"-1", "256", "nan", "inf", "3x", "''", "1e"}) {
-      CAPTURE(contrast);
-      std::string err;
-      CHECK(track(dir / "seq", dir / "out_contrast", &err, std::string(" --fast-reference-contrast ") + contrast) == 2);
-      CHECK(err.find("--fast-reference-contrast takes a contrast in 0..255") != std::string::npos);
-      CHECK_FALSE(std::filesystem::exists(dir / "out_contrast" / "summary.json"));
-    }
+    // Each bad value: exit 2, the option's message, no output written.
+    const auto refused = [&](const std::string& option, std::initializer_list<const char*> values,
+                             const std::string& message) {
+      for (const char* v : values) {
+        CAPTURE(option);
+        CAPTURE(v);
+        std::string err;
+        CHECK(track(dir / "seq", dir / "out_bad", &err, " " + option + " " + v) == 2);
+        CHECK(err.find(option + " takes " + message) != std::string::npos);
+        CHECK_FALSE(std::filesystem::exists(dir / "out_bad" / "summary.json"));
+      }
+    };
+    refused("--ba-lag", {"0", "-1", "1001", "3x", "''", "1e2"}, "a whole number of frames in 1..1000");
+    refused("--w-shape", {"-1", "1e7", "nan", "inf", "3x", "''"}, "a weight in 0..1e6");
+    refused("--max-raster-triangles", {"-1", "999", "4000001", "3x", "''", "1e4"},
+            "0 (never simplify) or a triangle count in 1000..4000000");
+    refused("--fast-reference-contrast", {"-1", "256", "nan", "inf", "3x", "''", "1e"}, "a contrast in 0..255");
   }
 }

@@ -13,7 +13,7 @@
 #include "core/rasterizer.h"
 #include "support/raster_scene.h"
 #include "support/support.h"
-#include "support/test_ply.h"
+#include "support/track_scene.h"
 #include "tools/sim/mesh_ops.h"
 
 using namespace st;
@@ -21,10 +21,16 @@ using namespace st::test;
 
 namespace {
 
-Mesh load_liver() {
-  auto mesh = read_binary_ply_for_tests(read_file_bytes(shared_data("liver/liver.ply")));
-  if (!mesh.ok()) FAIL(mesh.message());
-  return std::move(mesh).value();
+Mesh load_liver() { return load_liver_for_tracking(); }
+
+// One triangle in the z = 0 plane, counter-clockwise seen from +z.
+Mesh one_triangle(float size) {
+  Mesh m;
+  m.add_vertex(0, 0, 0);
+  m.add_vertex(size, 0, 0);
+  m.add_vertex(0, size, 0);
+  m.add_triangle(0, 1, 2);
+  return m;
 }
 
 // Largest and median distance from the vertices of `coarse` to the surface
@@ -149,11 +155,7 @@ TEST_CASE("mesh simplify: clustering keeps windings and merges duplicates") {
     CHECK((b - a).cross(d - a).z() > 0);  // still facing +z
   }
   // Two copies of the same triangle, spelled from different corners: one.
-  Mesh dup;
-  dup.add_vertex(0, 0, 0);
-  dup.add_vertex(5, 0, 0);
-  dup.add_vertex(0, 5, 0);
-  dup.add_triangle(0, 1, 2);
+  Mesh dup = one_triangle(5);
   dup.add_triangle(1, 2, 0);
   auto d = cluster_vertices(dup, 1.0);
   REQUIRE(d.ok());
@@ -163,11 +165,7 @@ TEST_CASE("mesh simplify: clustering keeps windings and merges duplicates") {
 TEST_CASE("mesh simplify: bad input gets a clear error") {
   Mesh empty;
   CHECK(simplify_to_budget(empty, 1000).message().find("no triangles") != std::string::npos);
-  Mesh m;
-  m.add_vertex(0, 0, 0);
-  m.add_vertex(1, 0, 0);
-  m.add_vertex(0, 1, 0);
-  m.add_triangle(0, 1, 2);
+  const Mesh m = one_triangle(1);
   CHECK(simplify_to_budget(m, 15).message().find("below 16") != std::string::npos);
   CHECK(cluster_vertices(m, 0.0).message().find("positive") != std::string::npos);
   CHECK(cluster_vertices(m, std::numeric_limits<double>::quiet_NaN()).message().find("positive") != std::string::npos);
