@@ -29,6 +29,7 @@ Result<Mesh> parse_mesh(std::string_view bytes);
 
 struct MeshReport {
   bool flipped = false;             // faces were wound inward and have been flipped
+  int reoriented = 0;               // faces wound against their neighbours, turned to agree
   double signed_volume_mm3 = 0.0;   // after any flip (>= 0 for a closed, outward mesh)
   Vec3 min = Vec3::Zero(), max = Vec3::Zero();  // bounding box, mm
   int triangles = 0, vertices = 0;
@@ -36,9 +37,12 @@ struct MeshReport {
 };
 
 // Checks a mesh (non-empty, indices in range, coordinates finite, counts
-// within caps) and makes its winding outward: if the signed volume is
-// negative (segmentations are often wound inward), every triangle is
-// flipped and the report says so. `report` may be null.
+// within caps) and makes its winding consistent and outward: faces wound
+// against their neighbours (across edges two faces share) are turned to
+// agree with the majority of their connected part; then, if the signed
+// volume is negative (segmentations are often wound inward), every
+// triangle is flipped. The report says what was changed. `report` may be
+// null.
 Status validate_and_orient(Mesh& mesh, MeshReport* report);
 
 // Binary little-endian PLY: float x y z; faces as uchar count + int indices;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <random>
 
 #include "core/capacity.h"
 #include "core/mesh_io.h"
@@ -114,6 +115,68 @@ TEST_CASE("mesh_io: inward winding is detected, flipped and reported") {
   REQUIRE(validate_and_orient(open, &r3).ok());
   CHECK_FALSE(r3.flipped);
   CHECK(r3.summary.find("winding unknown") != std::string::npos);
+}
+
+TEST_CASE("mesh_io: faces wound against their neighbours are turned to agree (10 % of the CT liver)") {
+  auto liver = load_mesh_file(test::shared_data("liver/liver.ply"), nullptr);
+  REQUIRE(liver.ok());
+  Mesh m = liver.value();
+  std::mt19937 rng(5);
+  int turned = 0;
+  for (int t = 0; t < m.triangle_count(); ++t)
+    if (rng() % 10 == 0) {
+      std::swap(m.tri[3 * t + 1], m.tri[3 * t + 2]);
+      ++turned;
+    }
+  REQUIRE(turned > 1500);
+  MeshReport r;
+  REQUIRE(validate_and_orient(m, &r).ok());
+  CHECK(r.reoriented == turned);
+  CHECK_FALSE(r.flipped);
+  CHECK(m.tri == liver->tri);  // exactly the faces turned, each back as it was
+  CHECK(r.summary.find(std::to_string(turned) + " faces wound against their neighbours") != std::string::npos);
+  // The majority decides, then the volume: 90 % of the faces inward.
+  Mesh inward = liver.value();
+  for (int t = 0; t < inward.triangle_count(); ++t)
+    if (rng() % 10 != 0) std::swap(inward.tri[3 * t + 1], inward.tri[3 * t + 2]);
+  MeshReport r2;
+  REQUIRE(validate_and_orient(inward, &r2).ok());
+  CHECK(r2.flipped);
+  CHECK(r2.reoriented > 1500);
+  CHECK(r2.reoriented < 2500);
+  CHECK(inward.tri == liver->tri);
+  // A consistent mesh is left alone.
+  Mesh same = liver.value();
+  MeshReport r3;
+  REQUIRE(validate_and_orient(same, &r3).ok());
+  CHECK(r3.reoriented == 0);
+  CHECK(same.tri == liver->tri);
+}
+
+TEST_CASE("mesh_io: orientation repair per connected part; non-manifold edges link nothing") {
+  // Two cubes apart: the second has one face (two triangles) turned.
+  Mesh m = cube(10);
+  Mesh second = cube(10);
+  std::swap(second.tri[1], second.tri[2]);
+  std::swap(second.tri[4], second.tri[5]);
+  const auto base = static_cast<std::int32_t>(m.vertex_count());
+  for (int i = 0; i < second.vertex_count(); ++i) m.add_vertex(second.x[i] + 50.f, second.y[i], second.z[i]);
+  for (const std::int32_t v : second.tri) m.tri.push_back(v + base);
+  MeshReport r;
+  REQUIRE(validate_and_orient(m, &r).ok());
+  CHECK(r.reoriented == 2);
+  CHECK_FALSE(r.flipped);
+  CHECK(r.signed_volume_mm3 == doctest::Approx(2000.0));
+  // A fin: a third triangle on an edge of a closed cube. That edge has three
+  // faces and links none of them; the fin, alone in its part, stays as it is.
+  Mesh fin = cube(10);
+  fin.add_vertex(5, 5, 30);
+  fin.add_triangle(fin.tri[0], fin.tri[1], 8);
+  const std::vector<std::int32_t> before = fin.tri;
+  MeshReport r2;
+  REQUIRE(validate_and_orient(fin, &r2).ok());
+  CHECK(r2.reoriented == 0);
+  CHECK(fin.tri == before);
 }
 
 namespace {
