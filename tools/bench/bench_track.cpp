@@ -92,6 +92,7 @@ struct TrackRun {
   std::vector<double> step_ms;
   int lost = 0, frames = 0;
   std::uint64_t allocations = 0;
+  int raster_triangles = 0;  // what the tracker rendered every frame
 };
 
 Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, const TrackArgs& a) {
@@ -109,9 +110,10 @@ Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, cons
   if (Status s = tracker->configure(cfg, seq.mesh, cam, seq.config.T_camera_model_init); !s) return Error{s.message()};
   info(opt, "mesh " + std::to_string(seq.mesh.triangle_count()) + " triangles, rendered every frame as " +
                 std::to_string(tracker->raster_triangles()));
+  TrackRun run;
+  run.raster_triangles = tracker->raster_triangles();
   Y4mReader reader;
   if (Status s = reader.open(seq.video_path, 2); !s) return Error{s.message()};
-  TrackRun run;
   run.stages.reserve(100000);
   run.step_ms.reserve(100000);
   tracker->start();
@@ -174,6 +176,25 @@ int bench_track(const Options& opt) {
   auto run = run_tracker(opt, seq.value(), a);
   if (!run) return std::fprintf(stderr, "bench track: %s\n", run.message().c_str()), 1;
   report_stages(opt, run.value());
+  if (run->raster_triangles < seq->mesh.triangle_count()) {
+    // A simplified prior (TrackerConfig::max_raster_triangles): the same
+    // run rendering every triangle is the baseline, in this process.
+    TrackArgs every = a;
+    every.max_raster_triangles = 0;
+    every.log_frames = 0;
+    auto base = run_tracker(opt, seq.value(), every);
+    if (!base) return std::fprintf(stderr, "bench track: %s\n", base.message().c_str()), 1;
+    const auto stage_ms = [](const TrackRun& r, Stage st) {
+      std::vector<double> v;
+      for (const StageTimes& t : r.stages) v.push_back(t[static_cast<std::size_t>(st)]);
+      return v;
+    };
+    const std::string tris = std::to_string(run->raster_triangles) + " of " + std::to_string(seq->mesh.triangle_count());
+    report(opt, Row{"track raster, simplified prior (" + tris + " triangles)", stage_ms(run.value(), Stage::kRaster),
+                    "every triangle", stage_ms(base.value(), Stage::kRaster), ""});
+    report(opt, Row{"track step, simplified prior (" + tris + " triangles)", run->step_ms, "every triangle",
+                    base->step_ms, std::to_string(base->lost) + " lost rendering every triangle"});
+  }
   return 0;
 }
 
