@@ -147,7 +147,7 @@ TEST_CASE(
 // stays as accurate as on the 20k-triangle original (README, "A dense
 // prior").
 TEST_CASE("app_e2e: a dense prior (the CT liver at 320k triangles) is simplified for the per-frame render" *
-          doctest::timeout(test::budget_s(300))) {
+          doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_dense_prior");
   simulate(dir / "seq", 120, "480x270", 2, "orbit",
            " --prior-subdivide 2 --mesh " + test::shell_quoted(test::shared_data("liver/liver.ply")));
