@@ -5,11 +5,15 @@
 // every frame for its mask and depth: the render's cost grows with the
 // triangle count (320k triangles: ~8x the 20k liver's). Vertex clustering
 // (Rossignac and Borrel's method): the vertices are binned into a uniform
-// grid of cubic cells, every cell's vertices merge into their mean, and a
-// triangle survives if its three corners land in three different cells,
-// with its winding kept (outward normals stay outward). Triangles that
-// become the same one are kept once. Any triangle soup works: no manifold
-// or closed input is needed, so a real segmentation cannot make it fail.
+// grid of cubic cells, and within a cell by the nearest of six axis
+// directions to their normal (the two sides of a part thinner than a cell
+// stay apart); every cluster becomes one vertex, placed at the point
+// nearest the planes of its triangles (area-weighted plane quadrics, as
+// Lindstrom's out-of-core simplification does), and a triangle survives if
+// its three corners land in three different clusters, with its winding
+// kept (outward normals stay outward). Triangles that become the same one
+// are kept once. Any triangle soup works: no manifold or closed input is
+// needed, so a real segmentation cannot make it fail.
 //
 // On a smooth organ surface the merged vertices stay within a small
 // fraction of the cell size of the original surface (a cell spans a nearly
