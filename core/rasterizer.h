@@ -69,6 +69,8 @@ class MeshRasterizer {
   ImageView<const std::int32_t> triangle_id() const;  // -1 where no organ
   ImageView<const std::uint8_t> mask() const;         // 255 organ, 0 elsewhere
   int covered_pixels() const { return covered_pixels_; }
+  // Triangles of the configured mesh (0 before configure()).
+  int triangle_count() const { return static_cast<int>(tri_id_.size()); }
 
   // Full-resolution pixel -> raster pixel (pixel centres at integers).
   Vec2 full_to_raster(const Vec2& px_full) const;

@@ -114,15 +114,17 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   rc.width = config.width;
   rc.height = config.height;
   rc.downscale = config.raster_downscale;
+  // The per-frame render draws the mesh, or its simplified copy when it is
+  // over budget (TrackerConfig::max_raster_triangles).
+  Mesh simplified;
+  const Mesh* rendered = &mesh;
   if (config.max_raster_triangles > 0 && mesh.triangle_count() > config.max_raster_triangles) {
-    auto simplified = simplify_to_budget(mesh, config.max_raster_triangles);
-    if (!simplified) return make_error("tracker: " + simplified.message());
-    if (Status s = raster_.configure(simplified.value(), rc); !s.ok()) return make_error("tracker: raster: " + s.message());
-    raster_triangles_ = simplified->triangle_count();
-  } else {
-    if (Status s = raster_.configure(mesh, rc); !s.ok()) return make_error("tracker: raster: " + s.message());
-    raster_triangles_ = mesh.triangle_count();
+    auto s = simplify_to_budget(mesh, config.max_raster_triangles);
+    if (!s) return make_error("tracker: " + s.message());
+    simplified = std::move(s).value();
+    rendered = &simplified;
   }
+  if (Status s = raster_.configure(*rendered, rc); !s.ok()) return make_error("tracker: raster: " + s.message());
   if (Status s = valid_mask_.configure(ValidMaskConfig{}, config.width, config.height); !s.ok())
     return make_error("tracker: valid mask: " + s.message());
   // The occluder mask is at the chroma's resolution, the valid mask's (1/2).

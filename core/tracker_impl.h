@@ -57,7 +57,7 @@ class TrackerImpl {
   void stop() { started_ = false; }
   TrackResult step(GrayView luma, int frame_index, ChromaView chroma);
   const TrackingMap& map() const { return map_; }
-  int raster_triangles() const { return raster_triangles_; }
+  int raster_triangles() const { return raster_.triangle_count(); }
   void set_ba_channel(BaChannel* channel) { ba_channel_ = channel; }
 
  private:
@@ -113,7 +113,6 @@ class TrackerImpl {
   bool distorted_ = false;
   SE3 T_init_;
   MeshRasterizer raster_;
-  int raster_triangles_ = 0;   // triangles raster_ draws (the mesh, or its simplified copy)
   bool raster_valid_ = false;  // raster_ holds a render at raster_pose_
   SE3 raster_pose_;
   ValidMaskBuilder valid_mask_;
