@@ -18,11 +18,34 @@ namespace {
 // class (3 bits) pack into one 63-bit key.
 constexpr double kMaxCellsPerAxis = double(1 << 20) - 2.0;
 
-// Which of the six axis directions a vertex normal is nearest to.
-std::uint64_t normal_class(const Vec3& n) {
-  int axis = 0;
-  n.cwiseAbs().maxCoeff(&axis);
-  return static_cast<std::uint64_t>(2 * axis + (n[axis] < 0 ? 1 : 0));
+constexpr std::uint8_t kUnused = 0xFF;  // a vertex no triangle refers to
+
+// Per vertex, which of the six axis directions its area-weighted normal is
+// nearest to (kUnused for a vertex no triangle uses). The two sides of a
+// part thinner than a cell face away from each other, and their vertices
+// must not merge into one point in between: a cell's vertices are
+// clustered by this class too. It does not depend on the cell size, so it
+// is computed once for all passes.
+std::vector<std::uint8_t> normal_classes(const Mesh& m) {
+  const auto nv = static_cast<std::size_t>(m.vertex_count());
+  std::vector<Vec3> normal(nv, Vec3::Zero());
+  std::vector<std::uint8_t> used(nv, 0);
+  for (int t = 0; t < m.triangle_count(); ++t) {
+    const Vec3 p0 = m.vertex(m.tri[3 * t]), p1 = m.vertex(m.tri[3 * t + 1]), p2 = m.vertex(m.tri[3 * t + 2]);
+    const Vec3 n2 = (p1 - p0).cross(p2 - p0);
+    for (int k = 0; k < 3; ++k) {
+      normal[static_cast<std::size_t>(m.tri[3 * t + k])] += n2;
+      used[static_cast<std::size_t>(m.tri[3 * t + k])] = 1;
+    }
+  }
+  std::vector<std::uint8_t> cls(nv, kUnused);
+  for (std::size_t v = 0; v < nv; ++v) {
+    if (!used[v]) continue;
+    int axis = 0;
+    normal[v].cwiseAbs().maxCoeff(&axis);
+    cls[v] = static_cast<std::uint8_t>(2 * axis + (normal[v][axis] < 0 ? 1 : 0));
+  }
+  return cls;
 }
 
 struct Bounds {
@@ -60,29 +83,18 @@ double surface_area(const Mesh& m) {
   return a;
 }
 
-Mesh cluster(const Mesh& m, const Bounds& b, double cell) {
+Mesh cluster(const Mesh& m, const std::vector<std::uint8_t>& normal_class, const Bounds& b, double cell) {
   const int nv = m.vertex_count();
-  std::vector<char> used(static_cast<std::size_t>(nv), 0);
-  for (const std::int32_t v : m.tri) used[static_cast<std::size_t>(v)] = 1;
-  // Area-weighted vertex normals: the two sides of a part thinner than a
-  // cell face away from each other, and their vertices must not merge into
-  // one point in between (a cell's vertices are clustered by the nearest of
-  // six axis directions to their normal).
-  std::vector<Vec3> normal(static_cast<std::size_t>(nv), Vec3::Zero());
-  for (int t = 0; t < m.triangle_count(); ++t) {
-    const Vec3 p0 = m.vertex(m.tri[3 * t]), p1 = m.vertex(m.tri[3 * t + 1]), p2 = m.vertex(m.tri[3 * t + 2]);
-    const Vec3 n2 = (p1 - p0).cross(p2 - p0);
-    for (int k = 0; k < 3; ++k) normal[static_cast<std::size_t>(m.tri[3 * t + k])] += n2;
-  }
   std::vector<std::pair<std::uint64_t, std::int32_t>> keyed;
   keyed.reserve(static_cast<std::size_t>(nv));
   for (int v = 0; v < nv; ++v) {
-    if (!used[static_cast<std::size_t>(v)]) continue;
+    const std::uint8_t cls = normal_class[static_cast<std::size_t>(v)];
+    if (cls == kUnused) continue;
     const Vec3 q = (m.vertex(v) - b.lo) / cell;
     const auto ix = static_cast<std::uint64_t>(std::floor(q.x()));
     const auto iy = static_cast<std::uint64_t>(std::floor(q.y()));
     const auto iz = static_cast<std::uint64_t>(std::floor(q.z()));
-    keyed.emplace_back((ix << 43) | (iy << 23) | (iz << 3) | normal_class(normal[static_cast<std::size_t>(v)]), v);
+    keyed.emplace_back((ix << 43) | (iy << 23) | (iz << 3) | cls, v);
   }
   std::sort(keyed.begin(), keyed.end());
   std::vector<std::int32_t> cluster_of(static_cast<std::size_t>(nv), -1);
@@ -192,7 +204,7 @@ Result<Mesh> cluster_vertices(const Mesh& mesh, double cell_mm) {
   if (extent / cell_mm > kMaxCellsPerAxis)
     return make_error("mesh simplification: cell size " + std::to_string(cell_mm) + " mm is too small for a mesh " +
                       std::to_string(extent) + " mm across");
-  return cluster(mesh, b, cell_mm);
+  return cluster(mesh, normal_classes(mesh), b, cell_mm);
 }
 
 Result<Mesh> simplify_to_budget(const Mesh& mesh, int max_triangles, SimplifyReport* report) {
@@ -214,8 +226,9 @@ Result<Mesh> simplify_to_budget(const Mesh& mesh, int max_triangles, SimplifyRep
   const double area = surface_area(mesh);
   double cell = std::max(0.7 * std::sqrt(area / (0.5 * max_triangles)), extent / kMaxCellsPerAxis);
   if (!(cell > 0) || !std::isfinite(cell)) cell = extent / 64.0;
+  const std::vector<std::uint8_t> classes = normal_classes(mesh);
   for (r.passes = 1; r.passes <= 200; ++r.passes, cell *= 1.15) {
-    Mesh out = cluster(mesh, b, cell);
+    Mesh out = cluster(mesh, classes, b, cell);
     if (out.triangle_count() <= max_triangles) {
       if (out.triangle_count() == 0)
         return make_error("mesh simplification: nothing of the mesh is left at the budget of " +
