@@ -7,6 +7,7 @@
 //   scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask]
 //                          [--no-occluder-mask] [--fast-reference-luma L] [--fast-reference-contrast C]
 //                          [--max-raster-triangles N] [--prior-subdivide N] [--log N]
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -136,16 +137,20 @@ Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, cons
   return run;
 }
 
+// One stage's time in every frame of the run (0 where it did not run).
+std::vector<double> stage_samples(const TrackRun& run, Stage stage) {
+  std::vector<double> v;
+  v.reserve(run.stages.size());
+  for (const StageTimes& t : run.stages) v.push_back(t[static_cast<std::size_t>(stage)]);
+  return v;
+}
+
 void report_stages(const Options& opt, const TrackRun& run) {
   for (int s = 0; s < static_cast<int>(Stage::kCount); ++s) {
     Row row;
     row.name = std::string("track ") + to_string(static_cast<Stage>(s));
-    int ran = 0;
-    for (const StageTimes& t : run.stages) {
-      const double ms = t[static_cast<std::size_t>(s)];
-      ran += ms > 0 ? 1 : 0;
-      row.samples_ms.push_back(ms);
-    }
+    row.samples_ms = stage_samples(run, static_cast<Stage>(s));
+    const auto ran = static_cast<int>(std::count_if(row.samples_ms.begin(), row.samples_ms.end(), [](double ms) { return ms > 0; }));
     if (ran == 0) continue;
     if (ran < run.frames) row.note = "ran on " + std::to_string(ran) + " of " + std::to_string(run.frames) + " frames (0 elsewhere)";
     report(opt, row);
@@ -184,14 +189,9 @@ int bench_track(const Options& opt) {
     every.log_frames = 0;
     auto base = run_tracker(opt, seq.value(), every);
     if (!base) return std::fprintf(stderr, "bench track: %s\n", base.message().c_str()), 1;
-    const auto stage_ms = [](const TrackRun& r, Stage st) {
-      std::vector<double> v;
-      for (const StageTimes& t : r.stages) v.push_back(t[static_cast<std::size_t>(st)]);
-      return v;
-    };
     const std::string tris = std::to_string(run->raster_triangles) + " of " + std::to_string(seq->mesh.triangle_count());
-    report(opt, Row{"track raster, simplified prior (" + tris + " triangles)", stage_ms(run.value(), Stage::kRaster),
-                    "every triangle", stage_ms(base.value(), Stage::kRaster), ""});
+    report(opt, Row{"track raster, simplified prior (" + tris + " triangles)", stage_samples(run.value(), Stage::kRaster),
+                    "every triangle", stage_samples(base.value(), Stage::kRaster), ""});
     report(opt, Row{"track step, simplified prior (" + tris + " triangles)", run->step_ms, "every triangle",
                     base->step_ms, std::to_string(base->lost) + " lost rendering every triangle"});
   }
