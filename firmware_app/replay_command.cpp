@@ -1,5 +1,6 @@
 // scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
-//   [--fast-reference-luma L] [--fast-reference-contrast C] [--no-descriptor-refresh] [--ring N]:
+//   [--fast-reference-luma L] [--fast-reference-contrast C] [--no-descriptor-refresh] [--w-shape W]
+//   [--max-raster-triangles N] [--ring N]:
 // replays a sequence through the tracker (hal/replay.h) into the output
 // folder. Exit status: 0 done, 1 the sequence or the replay failed (a clear
 // message on stderr; the output written so far stays), 2 bad command line.
@@ -179,7 +180,7 @@ int run_replay(Args argv) {
     std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask]"
                  " [--no-image-motion] [--no-ba]"
                  " [--no-shape-ba] [--ba-lag N] [--fast-reference-luma L] [--fast-reference-contrast C]"
-                 " [--no-descriptor-refresh]"
+                 " [--no-descriptor-refresh] [--w-shape W] [--max-raster-triangles N]"
                  " [--ring N]\n"
                  "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
     return 2;
