@@ -1,10 +1,12 @@
 #include <doctest/doctest.h>
 
 #include <cmath>
+#include <string>
 
 #include "core/mesh.h"
 #include "tools/sim/liver_mesh.h"
 #include "tools/sim/mesh_ops.h"
+#include "tools/sim/organ_shapes.h"
 #include "tools/sim/noise.h"
 
 using namespace st;
@@ -87,4 +89,43 @@ TEST_CASE("sim: noise is bounded, deterministic and continuous") {
   CHECK(hi > 0.3);
   CHECK(lo >= -1.5);
   CHECK(hi <= 1.5);
+}
+
+// The other organs: closed, outward, of their anatomy's size, no face
+// turned over by the mapping from the sphere (each face's normal still
+// points the way its face on the unit sphere did), deterministic per seed.
+TEST_CASE("sim: procedural kidney and stomach are closed, outward, organ-sized, with no face turned over") {
+  struct Expect {
+    OrganKind kind;
+    Vec3 size_mm;
+  };
+  for (const Expect& e : {Expect{OrganKind::Kidney, Vec3(110, 58, 48)}, Expect{OrganKind::Stomach, Vec3(180, 112, 72)}}) {
+    const std::string name = organ_name(e.kind);
+    CAPTURE(name);
+    const Mesh m = make_organ_mesh(e.kind, 1);
+    CHECK(m.triangle_count() == 20480);
+    CHECK(is_closed_oriented(m));
+    CHECK(signed_volume(m) > 0.0);
+    const Vec3 size = bounding_box(m).size();
+    MESSAGE(name << " bbox " << size.transpose() << " mm, volume " << signed_volume(m) / 1000 << " ml");
+    for (int k = 0; k < 3; ++k) CHECK(size[k] == doctest::Approx(e.size_mm[k]).epsilon(0.15));
+    const Mesh sphere = make_icosphere(5);
+    REQUIRE(sphere.triangle_count() == m.triangle_count());
+    double min_cos = 1.0;
+    for (int t = 0; t < m.triangle_count(); ++t) {
+      const auto normal = [t](const Mesh& s) {
+        const Vec3 a = s.vertex(s.tri[3 * t]), b = s.vertex(s.tri[3 * t + 1]), c = s.vertex(s.tri[3 * t + 2]);
+        return Vec3((b - a).cross(c - a).normalized());
+      };
+      min_cos = std::min(min_cos, normal(m).dot(normal(sphere)));
+    }
+    MESSAGE("smallest cosine between a face's normal and its sphere face's: " << min_cos);
+    CHECK(min_cos > 0.0);
+    const Mesh again = make_organ_mesh(e.kind, 1), other = make_organ_mesh(e.kind, 2);
+    CHECK(again.x == m.x);
+    CHECK(other.x != m.x);
+  }
+  CHECK(parse_organ("kidney").value() == OrganKind::Kidney);
+  CHECK_FALSE(parse_organ("spleen").ok());
+  CHECK(make_organ_mesh(OrganKind::Liver, 3).x == make_liver_mesh(LiverShape{5, 68, 82, 50, 40, 27, 0.04, 3}).x);
 }

@@ -1,7 +1,7 @@
 // scopetrack-sim: writes a synthetic laparoscopic sequence with exact
 // ground truth (docs/sequence-format.md).
 //   scopetrack-sim --scenario NAME --out DIR [--frames N] [--size WxH]
-//                  [--seed S] [--mesh FILE] [--prior-subdivide N] [--field-stop on|off] [--organ-detail F]
+//                  [--seed S] [--organ liver|kidney|stomach | --mesh FILE] [--prior-subdivide N] [--field-stop on|off] [--organ-detail F]
 //                  [--shutter F] [--light F] [--smoke F] [--texture FILE.y4m] [--texture-scale PX_PER_MM]
 #include <cstdio>
 #include <cstdlib>
@@ -9,6 +9,7 @@
 #include <string_view>
 
 #include "core/text_scan.h"
+#include "tools/sim/organ_shapes.h"
 #include "tools/sim/sim_run.h"
 
 namespace {
@@ -17,7 +18,8 @@ void usage(std::FILE* to) {
   std::fprintf(to,
                "usage: scopetrack-sim --scenario orbit|fast|outofview|manipulation|invivo --out DIR\n"
                "                      [--frames N (300)] [--size WxH (1280x720; invivo 960x540)]\n"
-               "                      [--seed S (1)] [--mesh FILE.ply|stl] [--field-stop on|off]\n"
+               "                      [--seed S (1)] [--organ liver|kidney|stomach (liver) | --mesh FILE.ply|stl]\n"
+               "                      [--field-stop on|off]\n"
                "                      [--prior-subdivide N (0; organ.ply split N times at edge midpoints:\n"
                "                       the same surface, 4^N times the triangles, as a dense CT export)]\n"
                "                      [--organ-detail F (1; lower = smoother tissue)]\n"
@@ -30,7 +32,7 @@ void usage(std::FILE* to) {
 
 // Returns an error message, or empty when all arguments were understood.
 std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
-  bool have_scenario = false;
+  bool have_scenario = false, have_organ = false;
   for (int i = 1; i < argc; ++i) {
     const std::string_view a = argv[i];
     if (i + 1 >= argc) return "missing value after " + std::string(a);
@@ -57,6 +59,11 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
     } else if (a == "--seed") {
       if (!st::parse_int64_in(v, 0, (1ll << 62), &n)) return "--seed wants a non-negative integer";
       o->seed = static_cast<std::uint64_t>(n);
+    } else if (a == "--organ") {
+      auto k = st::sim::parse_organ(v);
+      if (!k) return k.message();
+      o->organ = k.value();
+      have_organ = true;
     } else if (a == "--mesh") {
       o->mesh_file = std::string(v);
     } else if (a == "--prior-subdivide") {
@@ -88,6 +95,7 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
   }
   if (!have_scenario) return "--scenario is required";
   if (o->out_dir.empty()) return "--out is required";
+  if (have_organ && !o->mesh_file.empty()) return "--organ and --mesh both name the organ: give one";
   return {};
 }
 

@@ -4,7 +4,6 @@
 
 #include "core/capacity.h"
 #include "hal/mesh_file.h"
-#include "tools/sim/liver_mesh.h"
 #include "tools/sim/mesh_ops.h"
 
 namespace st::sim {
@@ -45,9 +44,7 @@ Result<SimSetup> make_setup(const SimOptions& o) {
   SimSetup s;
   Mesh organ;
   if (o.mesh_file.empty()) {
-    LiverShape shape;
-    shape.seed = o.seed;
-    organ = make_liver_mesh(shape);
+    organ = make_organ_mesh(o.organ, o.seed);
   } else {
     auto loaded = load_mesh_file(o.mesh_file, nullptr);
     if (!loaded) return loaded.error();

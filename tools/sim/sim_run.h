@@ -14,6 +14,7 @@
 #include "core/mesh.h"
 #include "core/result.h"
 #include "core/trajectory.h"
+#include "tools/sim/organ_shapes.h"
 #include "tools/sim/renderer.h"
 #include "tools/sim/scenario.h"
 #include "tools/sim/scene.h"
@@ -26,7 +27,8 @@ struct SimOptions {
   int frames = 300;
   int width = 0, height = 0;  // 0: the scenario's default (1280x720; invivo 960x540)
   std::uint64_t seed = 1;
-  std::filesystem::path mesh_file;  // empty: the procedural liver
+  OrganKind organ = OrganKind::Liver;  // the procedural organ when mesh_file is empty
+  std::filesystem::path mesh_file;  // empty: the procedural organ
   int prior_subdivide = 0;          // organ.ply subdivided this many times (same surface, 4^N triangles)
   int field_stop = -1;              // -1: scenario default (invivo only), 0 off, 1 on
   double organ_detail = 1.0;        // RenderSettings::organ_detail (1: calibrated on the real liver)
