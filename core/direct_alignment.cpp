@@ -401,6 +401,18 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
     if (!improved) break;
   }
   s->used = used;
+  // The fit at the end: the median absolute residual of the points still
+  // in view (comparable between starts on the same reference and image).
+  m = 0;
+  for (int i = 0; i < n; ++i) {
+    Vec3 pc;
+    double r, sx, sy;
+    if (residual(*T, *a, *b, i, &r, &pc, &sx, &sy)) residuals_[static_cast<std::size_t>(m++)] = std::abs(r);
+  }
+  if (m > 0) {
+    std::nth_element(residuals_.begin(), residuals_.begin() + m / 2, residuals_.begin() + m);
+    s->residual_median = residuals_[static_cast<std::size_t>(m / 2)];
+  }
   return true;
 }
 
@@ -433,9 +445,13 @@ bool DirectAligner::align(GrayView image, GrayView valid, const MeshRasterizer& 
     s.points = select_points(l, raster, camera);
     ok = s.points >= kMinPoints && solve_level(l, s.points, camera, &T, &a, &b, &s);
   }
+  s.gain = a;
   if (summary) *summary = s;
   // Most of the organ seen in the reference must still be in view.
   if (!ok || s.used < kMinPoints || 2 * s.used < s.points || !T.all_finite()) return false;
+  // A contrast that collapsed (or blew up) explains any image: the points
+  // then sit on flat tissue or off the organ, not on their texture.
+  if (!(a >= kMinGain && a <= kMaxGain)) return false;
   *T_camera_model = T;
   return true;
 }

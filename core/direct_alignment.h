@@ -50,6 +50,13 @@ struct DirectAlignSummary {
   int points = 0;        // reference points with depth at the finest level
   int used = 0;          // of those, inside the current image at the end
   int iterations = 0;    // over all levels
+  // Median |residual| of the points in view at the estimate, on the finest
+  // level (intensity / the reference's mean, after the local mean is taken
+  // out): how well the estimate explains the image. Comparable between
+  // alignments of the same image to the same reference from different
+  // starts (a wrong basin leaves larger residuals).
+  double residual_median = 0;
+  double gain = 1;  // the estimate's contrast change (current ~ gain * reference + offset)
 };
 
 class DirectAligner {
@@ -59,6 +66,16 @@ class DirectAligner {
   static constexpr int kMinLevelWidth = 32;  // coarser levels while at least this wide
   static constexpr int kMinPoints = 50;      // reference points on the organ needed at each level
   static constexpr int kTargetWidth = 320;   // the finest level's width to aim for (see choose_level)
+  // An estimate whose contrast gain left [kMinGain, kMaxGain] is refused.
+  // The gain is how much of the reference's texture the current image shows
+  // at the estimate: blur lowers it (0.33-0.89 on the simulator's smeared
+  // frames, liver and stomach), a sharp frame after a smeared reference
+  // raises it. Near 0 the points sit on tissue that does not match them
+  // and the gain "explains" the difference away, with a small residual: a
+  // wrong basin (the simulated stomach's fast swing: 0.04, the organ 10-22
+  // px off) or a run-away chain (0.04 at 922 mm off).
+  static constexpr double kMinGain = 0.2;
+  static constexpr double kMaxGain = 5.0;
 
   // Of an image pyramid whose level k is widths[k] wide, the level to
   // align on: the one closest to kTargetWidth.

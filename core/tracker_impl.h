@@ -70,7 +70,7 @@ class TrackerImpl {
   double image_shift_px(const SE3& a, const SE3& b) const;
   double view_difference_px(const SE3& a, const SE3& b) const;
   SE3 motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted);
-  bool dead_reckon(SE3* T_camera_model);
+  bool dead_reckon(SE3* T_camera_model, const SE3& T_alternative);
   int match_local_map(float radius_px);
   bool solve_pose(SE3* T_camera_model, PoseEstimate* e);
   bool track_from(const SE3& T_predicted, float first_radius_px, PoseEstimate* e, TrackResult* r);

@@ -36,7 +36,7 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   // measurement is the guess, however long tracking has been lost; the
   // velocity follows it.
   SE3 T_measured = T_turned;
-  const bool measured = dead_reckon(&T_measured);
+  const bool measured = dead_reckon(&T_measured, lost_velocity_ * T_dead_reckoned_);
   // This frame's own motion (its blur), when measured.
   lost_motion_px_ = measured ? image_shift_px(T_dead_reckoned_, T_measured) : kUnknownMotion;
   if (measured) {
