@@ -68,9 +68,9 @@ class DirectAligner {
   static constexpr int kTargetWidth = 320;   // the finest level's width to aim for (see choose_level)
   // An estimate whose contrast gain left [kMinGain, kMaxGain] is refused.
   // The gain is how much of the reference's texture the current image shows
-  // at the estimate: blur lowers it (0.33-0.89 on the simulator's smeared
-  // frames, liver and stomach), a sharp frame after a smeared reference
-  // raises it. Near 0 the points sit on tissue that does not match them
+  // at the estimate: blur lowers it (0.33-0.89 over the simulator's lost
+  // frames: smeared liver, photo liver and stomach), a sharp frame after a
+  // smeared reference raises it. Near 0 the points sit on tissue that does not match them
   // and the gain "explains" the difference away, with a small residual: a
   // wrong basin (the simulated stomach's fast swing: 0.04, the organ 10-22
   // px off) or a run-away chain (0.04 at 922 mm off).
@@ -97,7 +97,8 @@ class DirectAligner {
   // render at reference_pose() (its depth gives the reference points);
   // camera is the full-resolution camera (distortion applied when
   // projecting). *T_camera_model: in, the guess; out, the estimate (only
-  // when true is returned: enough points stayed in view and converged).
+  // when true is returned: enough points stayed in view and converged,
+  // and the contrast gain stayed within [kMinGain, kMaxGain]).
   bool align(GrayView image, GrayView valid, const MeshRasterizer& raster, const CameraModel& camera,
              SE3* T_camera_model, DirectAlignSummary* summary = nullptr);
 
