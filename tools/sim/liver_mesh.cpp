@@ -86,18 +86,21 @@ Mesh make_icosphere(int level) {
   return m;
 }
 
-Mesh make_liver_mesh(const LiverShape& shape) {
-  Mesh m = make_icosphere(shape.subdivisions);
-  const Noise3 noise(shape.seed);
+Mesh map_icosphere(int level, const std::function<Vec3(const Vec3&)>& surface) {
+  Mesh m = make_icosphere(level);
   for (int i = 0; i < m.vertex_count(); ++i) {
-    const Vec3 d = m.vertex(i);
-    const Vec3 p = d * liver_radius(d, shape, noise);
+    const Vec3 p = surface(m.vertex(i));
     m.x[i] = static_cast<float>(p.x());
     m.y[i] = static_cast<float>(p.y());
     m.z[i] = static_cast<float>(p.z());
   }
   centre_on_box(m);
   return m;
+}
+
+Mesh make_liver_mesh(const LiverShape& shape) {
+  const Noise3 noise(shape.seed);
+  return map_icosphere(shape.subdivisions, [&](const Vec3& d) { return Vec3(d * liver_radius(d, shape, noise)); });
 }
 
 }  // namespace st::sim

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 
 #include "core/mesh.h"
 
@@ -28,5 +29,10 @@ Mesh make_liver_mesh(const LiverShape& shape = {});
 // A unit icosphere subdivided `level` times (20 * 4^level triangles,
 // outward counter-clockwise). Exposed for the background's organ shapes.
 Mesh make_icosphere(int level);
+
+// make_icosphere(level) with every vertex (a unit direction d) moved to
+// surface(d), then centred on its bounding box: the organ shapes' common
+// construction. surface must turn no face over.
+Mesh map_icosphere(int level, const std::function<Vec3(const Vec3&)>& surface);
 
 }  // namespace st::sim

@@ -5,7 +5,6 @@
 #include <string>
 
 #include "tools/sim/liver_mesh.h"
-#include "tools/sim/mesh_ops.h"
 #include "tools/sim/noise.h"
 
 namespace st::sim {
@@ -61,24 +60,17 @@ Mesh make_organ_mesh(OrganKind kind, std::uint64_t seed) {
     shape.seed = seed;
     return make_liver_mesh(shape);
   }
-  Mesh m = make_icosphere(kSubdivisions);
   const Noise3 noise(seed);
   const bool kidney = kind == OrganKind::Kidney;
   const double a = (kidney ? 58.0 : 95.0) * proportion(noise, 3.1f);
   const double b = (kidney ? 32.0 : 55.0) * proportion(noise, 7.3f);
   const double c = (kidney ? 24.0 : 35.0) * proportion(noise, 11.9f);
-  for (int i = 0; i < m.vertex_count(); ++i) {
-    const Vec3 d = m.vertex(i);
+  return map_icosphere(kSubdivisions, [&](const Vec3& d) {
     const double irregular =
         1.0 + 0.04 * static_cast<double>(noise.fbm(static_cast<float>(1.5 * d.x()), static_cast<float>(1.5 * d.y()),
                                                     static_cast<float>(1.5 * d.z()), 2));
-    const Vec3 p = kidney ? kidney_point(d, a, b, c, irregular) : stomach_point(d, a, b, c, irregular);
-    m.x[i] = static_cast<float>(p.x());
-    m.y[i] = static_cast<float>(p.y());
-    m.z[i] = static_cast<float>(p.z());
-  }
-  centre_on_box(m);
-  return m;
+    return kidney ? kidney_point(d, a, b, c, irregular) : stomach_point(d, a, b, c, irregular);
+  });
 }
 
 }  // namespace st::sim
