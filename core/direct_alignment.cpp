@@ -308,16 +308,25 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
     *r = bilinear(l.cur.data(), w, *sx, *sy) - (ap * intensity_[static_cast<std::size_t>(i)] + bp);
     return true;
   };
+  // Median |residual| over the points in view at (Tp, ap, bp) into
+  // *median; returns how many points were in view (0: *median untouched).
+  const auto median_abs_residual = [&](const SE3& Tp, double ap, double bp, double* median) {
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+      Vec3 pc;
+      double r, sx, sy;
+      if (residual(Tp, ap, bp, i, &r, &pc, &sx, &sy)) residuals_[static_cast<std::size_t>(m++)] = std::abs(r);
+    }
+    if (m > 0) {
+      std::nth_element(residuals_.begin(), residuals_.begin() + m / 2, residuals_.begin() + m);
+      *median = residuals_[static_cast<std::size_t>(m / 2)];
+    }
+    return m;
+  };
   // Robust scale: median absolute residual at the start (MAD * 1.4826).
-  int m = 0;
-  for (int i = 0; i < n; ++i) {
-    Vec3 pc;
-    double r, sx, sy;
-    if (residual(*T, *a, *b, i, &r, &pc, &sx, &sy)) residuals_[static_cast<std::size_t>(m++)] = std::abs(r);
-  }
-  if (m < 20) return false;
-  std::nth_element(residuals_.begin(), residuals_.begin() + m / 2, residuals_.begin() + m);
-  const double sigma = std::max(1.4826 * residuals_[static_cast<std::size_t>(m / 2)], 1e-3);
+  double start_median = 0;
+  if (median_abs_residual(*T, *a, *b, &start_median) < 20) return false;
+  const double sigma = std::max(1.4826 * start_median, 1e-3);
   const double k = kHuber * sigma;
   const double out_cost = huber_cost(kOutCostSigmas * sigma, k);
   const auto cost_at = [&](const SE3& Tp, double ap, double bp, int* used) {
@@ -403,16 +412,7 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
   s->used = used;
   // The fit at the end: the median absolute residual of the points still
   // in view (comparable between starts on the same reference and image).
-  m = 0;
-  for (int i = 0; i < n; ++i) {
-    Vec3 pc;
-    double r, sx, sy;
-    if (residual(*T, *a, *b, i, &r, &pc, &sx, &sy)) residuals_[static_cast<std::size_t>(m++)] = std::abs(r);
-  }
-  if (m > 0) {
-    std::nth_element(residuals_.begin(), residuals_.begin() + m / 2, residuals_.begin() + m);
-    s->residual_median = residuals_[static_cast<std::size_t>(m / 2)];
-  }
+  median_abs_residual(*T, *a, *b, &s->residual_median);
   return true;
 }
 
