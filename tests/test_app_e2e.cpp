@@ -171,7 +171,7 @@ TEST_CASE("app_e2e: a dense prior (the CT liver at 320k triangles) is simplified
 // these guard against thresholds that only suit the liver. Measured when
 // the test was written: kidney orbit 0 % lost, TRE 0.27 / 0.86 px; stomach
 // manipulation 0 %, 0.30 / 0.81 px.
-TEST_CASE("app_e2e: other organs (a kidney's orbit, a stomach's manipulation; 640x360) are tracked" *
+TEST_CASE("app_e2e: other organs (a kidney's orbit, a stomach's manipulation, 640x360) are tracked" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   struct Case {
     const char* organ;

@@ -26,7 +26,7 @@ SE3 random_pose(std::mt19937& rng) {
 
 }  // namespace
 
-TEST_CASE("ba residuals: SE3 left Jacobian of exp matches central differences; identity at zero") {
+TEST_CASE("ba residuals: SE3 left Jacobian of exp matches central differences, identity at zero") {
   std::mt19937 rng(1);
   CHECK((se3_left_jacobian(Vec6::Zero()) - Mat6::Identity()).norm() == 0.0);
   for (int trial = 0; trial < 20; ++trial) {

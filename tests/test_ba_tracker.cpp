@@ -178,7 +178,7 @@ TEST_CASE("ba tracker: BA keeps tracking accurate and map points on the mesh (sy
   CHECK(with_shape.mean_surface_mm < 0.5);
 }
 
-TEST_CASE("ba tracker: use_ba false hands out no job; bad BA settings are refused") {
+TEST_CASE("ba tracker: use_ba false hands out no job, bad BA settings are refused") {
   const RenderedOrbit& s = orbit40();
   TrackerConfig cfg = small_config(s.K);
   cfg.use_ba = false;

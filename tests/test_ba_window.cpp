@@ -74,7 +74,7 @@ void check_cap_bounds(BundleAdjusterOptions o, int BundleAdjusterOptions::*cap, 
 
 }  // namespace
 
-TEST_CASE("ba window: perturbed poses and points come back; the shape residual keeps points on the mesh") {
+TEST_CASE("ba window: perturbed poses and points come back, the shape residual keeps points on the mesh") {
   const Mesh mesh = load_liver_for_tracking();
   const Pinhole K = track_test_pinhole();
   Errors with_shape, without_shape, start;
@@ -195,7 +195,7 @@ TEST_CASE("ba window: observations capped to the newest k per point still bring 
   check_cap_bounds(o, &BundleAdjusterOptions::max_observations_per_point, mesh, K, w.job);
 }
 
-TEST_CASE("ba window: observations from fixed keyframes capped per point; the window still comes back") {
+TEST_CASE("ba window: observations from fixed keyframes capped per point, the window still comes back") {
   const Mesh mesh = load_liver_for_tracking();
   const Pinhole K = track_test_pinhole();
   BaWindowSpec spec;

@@ -178,7 +178,7 @@ TEST_CASE("closest point: bad input is refused, queries allocate nothing") {
 // between the triangles sharing a vertex), points far out (large float
 // rounding of the coordinates) and a one-leaf mesh all give the exhaustive
 // minimum; coordinates beyond 1e15 mm are refused like non-finite ones.
-TEST_CASE("closest point: on-surface, far-out and one-leaf queries equal brute force; huge coordinates refused") {
+TEST_CASE("closest point: on-surface, far-out and one-leaf queries equal brute force, huge coordinates refused") {
   const Mesh mesh = load_liver_for_tracking();
   ClosestPointIndex index;
   REQUIRE(index.configure(mesh).ok());

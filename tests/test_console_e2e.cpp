@@ -107,7 +107,7 @@ double summary_number(const std::filesystem::path& out, const std::string& key) 
 }  // namespace
 
 TEST_CASE(
-    "console_e2e: scopetrack streams a simulated sequence; the console gets every pose in order "
+    "console_e2e: scopetrack streams a simulated sequence, the console gets every pose in order "
     "and the "
     "simulator's texture" *
     doctest::timeout(test::budget_s(400))) {

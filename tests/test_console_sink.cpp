@@ -120,7 +120,7 @@ TEST_CASE(
 }
 
 TEST_CASE(
-    "console_sink: a console that never reads costs drops, not time or memory; a reconnect gets a "
+    "console_sink: a console that never reads costs drops, not time or memory, a reconnect gets a "
     "fresh hello" *
     doctest::timeout(60)) {
   const Mesh cube = test::centred_cube(40);

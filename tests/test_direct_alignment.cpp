@@ -195,7 +195,7 @@ TEST_CASE("direct alignment: an estimate in the wrong basin is refused (gain) an
   CHECK(s_near.gain > 2 * DirectAligner::kMinGain);
 }
 
-TEST_CASE("direct alignment: no organ, no reference or a bad pose is refused; align allocates nothing" *
+TEST_CASE("direct alignment: no organ, no reference or a bad pose is refused, align allocates nothing" *
           doctest::timeout(120)) {
   Frames seq(ScenarioKind::Orbit, 100, 1);
   seq.render({10, 11});

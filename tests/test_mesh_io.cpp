@@ -153,7 +153,7 @@ TEST_CASE("mesh_io: faces wound against their neighbours are turned to agree (10
   CHECK(same.tri == liver->tri);
 }
 
-TEST_CASE("mesh_io: orientation repair per connected part; non-manifold edges link nothing") {
+TEST_CASE("mesh_io: orientation repair per connected part, non-manifold edges link nothing") {
   // Two cubes apart: the second has one face (two triangles) turned.
   Mesh m = cube(10);
   Mesh second = cube(10);

@@ -74,7 +74,7 @@ struct Patch {
 
 }  // namespace
 
-TEST_CASE("occluder mask: neutral surfaces are flagged; red and yellow tissue, dark noise and highlights are not") {
+TEST_CASE("occluder mask: neutral surfaces are flagged, red and yellow tissue, dark noise and highlights are not") {
   // 8 patches of 64x64 luma pixels on a strongly red background.
   const Patch patches[] = {
       {"grey steel, mid", 120, 120, 120, true},

@@ -336,7 +336,7 @@ TEST_CASE("orb feature grid: query equals a brute-force radius search") {
   }
 }
 
-TEST_CASE("orb configure rejects bad configs; extract and the mask builder reject wrong sizes") {
+TEST_CASE("orb configure rejects bad configs, extract and the mask builder reject wrong sizes") {
   OrbExtractor orb;
   OrbConfig c;
   c.n_features = kMaxKeypoints + 1;

@@ -156,7 +156,7 @@ TEST_CASE("orb feature grid: a small output capacity is respected and filled wit
 // max_distance in the previous, larger search (tracker_track.cpp): that
 // relies on best_distances() being the true minimum over the candidates,
 // and on inactive points leaving the other points' matches unchanged.
-TEST_CASE("orb matcher: best_distances is the candidates' minimum; inactive points change no other match") {
+TEST_CASE("orb matcher: best_distances is the candidates' minimum, inactive points change no other match") {
   auto f = std::make_unique<st::FeatureSet>();
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> ux(0.f, 640.f), uy(0.f, 480.f);

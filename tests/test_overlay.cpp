@@ -213,7 +213,7 @@ TEST_CASE("overlay: a pose 8 mm off draws a silhouette visibly off the organ") {
   }
 }
 
-TEST_CASE("overlay: lost frames get a red border and no silhouette; markers at both poses") {
+TEST_CASE("overlay: lost frames get a red border and no silhouette, markers at both poses") {
   const auto dir = test::scratch_dir("overlay_lost");
   const BoxSequence s = write_box_sequence(dir / "seq", 3);
   write_run(dir / "run", {s.gt[0], s.gt[2]}, {"initialised", "lost", "tracking"});

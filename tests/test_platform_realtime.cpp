@@ -9,7 +9,7 @@
 
 using namespace st;
 
-TEST_CASE("set_thread_nice lowers the calling thread only; values outside 0..19 are refused") {
+TEST_CASE("set_thread_nice lowers the calling thread only, values outside 0..19 are refused") {
   const int main_before = platform::thread_nice();
   // A process started under nice keeps its own (higher) value in the worker.
   const int expected = std::max(main_before, platform::kBackgroundWorkerNice);

@@ -108,7 +108,7 @@ TEST_CASE("sim: every scenario keeps a sane, smooth scope path looking at the or
   }
 }
 
-TEST_CASE("sim: manipulation moves the organ against the background; others do not") {
+TEST_CASE("sim: manipulation moves the organ against the background, others do not") {
   const Trajectory manip(ScenarioKind::Manipulation, test_scene(), 100, 1);
   const PoseDelta d = pose_delta(manip.at(0).T_world_model, manip.at(55).T_world_model);
   MESSAGE("organ moved " << d.angle_deg << " deg, " << d.distance_mm << " mm");

@@ -54,7 +54,7 @@ void organ_stats(const Rendered& r, double* mean, double* stddev) {
 
 }  // namespace
 
-TEST_CASE("sim smoke: episodes build up, hold and clear; the veil's share stays within the opacity") {
+TEST_CASE("sim smoke: episodes build up, hold and clear, the veil's share stays within the opacity") {
   SmokeVeil veil;
   veil.configure(0.7, 5, 320, 180);
   REQUIRE(veil.enabled());
@@ -85,7 +85,7 @@ TEST_CASE("sim smoke: episodes build up, hold and clear; the veil's share stays 
   CHECK(none.envelope(60) == 0.0);
 }
 
-TEST_CASE("sim smoke: a thick veil lifts and flattens the organ, leaves the labels; no smoke, no change" *
+TEST_CASE("sim smoke: a thick veil lifts and flattens the organ, leaves the labels, no smoke, no change" *
           doctest::timeout(st::test::budget_s(60))) {
   // Seed 3's first episode: find a frame at full thickness.
   SmokeVeil veil;

@@ -147,7 +147,7 @@ TEST_CASE("texture: visible front faces get their colour, back faces none, in bo
 }
 
 TEST_CASE(
-    "texture: running weighted mean with the weight capped at 10 keeps adapting; no allocation per "
+    "texture: running weighted mean with the weight capped at 10 keeps adapting, no allocation per "
     "frame") {
   const Mesh cube = test::centred_cube(40);
   const SE3 T = cube_pose();
