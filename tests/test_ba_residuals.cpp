@@ -11,6 +11,7 @@
 #include "core/ba_residuals.h"
 #include "core/correspondences.h"
 #include "support/track_scene.h"
+#include "support/draws.h"
 
 using namespace st;
 using namespace st::test;
@@ -57,9 +58,10 @@ TEST_CASE("ba residuals: reprojection cost Jacobians match central differences (
     if (trial % 2 == 1)
       for (int k = 0; k < 6; ++k) delta[k] = (k < 3 ? 0.03 : 1.5) * g(rng);
     const SE3 T = SE3::exp(delta) * T0;
-    const Vec3 p_camera(20 * g(rng), 15 * g(rng), 80 + 10 * std::abs(g(rng)));
+    const Vec3 a = draw_vec3(g, rng);
+    const Vec3 p_camera(20 * a.x(), 15 * a.y(), 80 + 10 * std::abs(a.z()));
     Vec3 p_model = T.inverse() * p_camera;
-    const Vec2 px = K.project(p_camera) + Vec2(3 * g(rng), 3 * g(rng));
+    const Vec2 px = K.project(p_camera) + 3 * draw_vec2(g, rng);
     const int octave = trial % 8;
     const double sqrt_info = std::sqrt(octave_information(octave));
     const auto cost = [&](const Vec6& d, const Vec3& f, double* rr, double* jp, double* jf) {
@@ -105,7 +107,8 @@ TEST_CASE("ba residuals: shape cost is sqrt(w) (f - D(f)), w = 100, with a Jacob
   int checked = 0;
   for (int trial = 0; trial < 100; ++trial) {
     const int v = static_cast<int>(u(rng) * (mesh.vertex_count() - 1));
-    const Vec3 f = mesh.vertex(v) + 3.0 * u(rng) * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized();
+    const double reach = 3.0 * u(rng);
+    const Vec3 f = mesh.vertex(v) + reach * (draw_vec3(u, rng) - Vec3::Constant(0.5)).normalized();
     double r[3], J[9];
     REQUIRE(shape_cost(index, 10.0, f.data(), r, J));
     SurfacePoint s;
@@ -149,7 +152,8 @@ TEST_CASE("ba residuals: tangent-plane shape cost, its Jacobian (central differe
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (int trial = 0; trial < 50; ++trial) {
     const int v = static_cast<int>(u(rng) * (mesh.vertex_count() - 1));
-    const Vec3 f0 = mesh.vertex(v) + 2.0 * u(rng) * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized();
+    const double reach = 2.0 * u(rng);
+    const Vec3 f0 = mesh.vertex(v) + reach * (draw_vec3(u, rng) - Vec3::Constant(0.5)).normalized();
     ShapePlane plane;
     REQUIRE(shape_plane(index, f0, &plane));
     SurfacePoint s;

@@ -235,7 +235,12 @@ TEST_CASE("ba window: observations from fixed keyframes capped per point, the wi
     CHECK(w.job.summary.observations < w.job.observation_count);
     CHECK(end.rot_deg < 0.2 * start.rot_deg);
     CHECK(end.trans_mm < 0.2 * start.trans_mm);
-    CHECK(end.point_mm < (w_shape > 0 ? 0.5 : 1.0) * start.point_mm);
+    // With the shape residual the points come back too. Without it, one
+    // fixed observation per point leaves each point's depth to the window's
+    // short baseline: they stay about where they were (1 mm -> 1.02 mm on
+    // this fixture; 0.78 mm on the one x86-64 builds drew before the draws
+    // were ordered, see support/draws.h), but must not run away.
+    CHECK(end.point_mm < (w_shape > 0 ? 0.5 : 1.25) * start.point_mm);
     check_cap_bounds(o, &BundleAdjusterOptions::max_fixed_observations_per_point, mesh, K, w.job);
   }
 }

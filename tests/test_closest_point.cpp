@@ -14,6 +14,7 @@
 #include "support/alloc_guard.h"
 #include "support/ba_window.h"
 #include "support/track_scene.h"
+#include "support/draws.h"
 
 using namespace st;
 using namespace st::test;
@@ -43,11 +44,12 @@ std::vector<Vec3> query_points(const Mesh& m, int n, std::uint32_t seed) {
   std::vector<Vec3> q;
   for (int i = 0; i < n; ++i) {
     if (i % 2 == 0) {
-      const Vec3 r(u(rng), u(rng), u(rng));
+      const Vec3 r = draw_vec3(u, rng);
       q.push_back(lo - Vec3::Constant(20) + (hi - lo + Vec3::Constant(40)).cwiseProduct(r));
     } else {
       const int v = static_cast<int>(u(rng) * (m.vertex_count() - 1));
-      q.push_back(m.vertex(v) + 5.0 * u(rng) * Vec3(g(rng), g(rng), g(rng)).normalized());
+      const double reach = 5.0 * u(rng);
+      q.push_back(m.vertex(v) + reach * draw_vec3(g, rng).normalized());
     }
   }
   return q;
@@ -59,8 +61,8 @@ TEST_CASE("closest point: triangle kernel is the minimum over a dense sampling o
   std::mt19937 rng(3);
   std::normal_distribution<double> g(0.0, 10.0);
   for (int trial = 0; trial < 200; ++trial) {
-    const Vec3 a(g(rng), g(rng), g(rng)), b(g(rng), g(rng), g(rng)), c(g(rng), g(rng), g(rng));
-    const Vec3 p(g(rng), g(rng), g(rng));
+    const Vec3 a = draw_vec3(g, rng), b = draw_vec3(g, rng), c = draw_vec3(g, rng);
+    const Vec3 p = draw_vec3(g, rng);
     const SurfacePoint s = closest_point_on_triangle(p, a, b, c);
     double sampled = std::numeric_limits<double>::infinity();
     const int n = 200;

@@ -15,6 +15,7 @@
 #include "support/support.h"
 #include "support/track_scene.h"
 #include "tools/sim/mesh_ops.h"
+#include "support/draws.h"
 
 using namespace st;
 using namespace st::test;
@@ -101,9 +102,11 @@ TEST_CASE("mesh simplify: renders of the simplified liver match the original's (
   long both = 0, either = 0;
   std::vector<double> dz;
   for (int i = 0; i < 20; ++i) {
-    Vec3 dir(u(rng), u(rng), u(rng));
+    Vec3 dir = draw_vec3(u, rng);
     if (dir.norm() < 0.1) dir = Vec3(0, 0, 1);
-    const SE3 T = look_at(centre + 30.0 * Vec3(u(rng), u(rng), u(rng)), dir, 200.0 + 60.0 * u(rng), M_PI * u(rng));
+    const Vec3 target = centre + 30.0 * draw_vec3(u, rng);
+    const double distance = 200.0 + 60.0 * u(rng);
+    const SE3 T = look_at(target, dir, distance, M_PI * u(rng));
     fine.render(T, K);
     coarse.render(T, K);
     for (int y = 0; y < 360; ++y)

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/p3p.h"
+#include "support/draws.h"
 
 #ifdef SCOPETRACK_HAVE_CALIB3D
 #include <opencv2/calib3d.hpp>
@@ -31,7 +32,8 @@ P3PCase random_case(std::mt19937& rng) {
   c.T_camera_model = SE3::exp(xi);
   const SE3 T_model_camera = c.T_camera_model.inverse();
   for (int i = 0; i < 3; ++i) {
-    const Vec3 dir = Vec3(0.7 * u(rng), 0.7 * u(rng), 1.0).normalized();
+    const Vec2 xy = 0.7 * test::draw_vec2(u, rng);
+    const Vec3 dir = Vec3(xy.x(), xy.y(), 1.0).normalized();
     c.bearing[i] = dir;
     c.p_model[i] = T_model_camera * Vec3(depth(rng) * dir);
   }
@@ -133,8 +135,10 @@ TEST_CASE("p3p: points behind the camera and random garbage never yield NaN") {
     // Garbage at any scale.
     std::array<Vec3, 3> b, p;
     for (int i = 0; i < 3; ++i) {
-      b[i] = Vec3(u(rng), u(rng), u(rng)) * std::pow(10.0, expo(rng));
-      p[i] = Vec3(u(rng), u(rng), u(rng)) * std::pow(10.0, expo(rng));
+      b[i] = test::draw_vec3(u, rng);
+      b[i] *= std::pow(10.0, expo(rng));
+      p[i] = test::draw_vec3(u, rng);
+      p[i] *= std::pow(10.0, expo(rng));
     }
     const int m = solve_p3p(b, p, &s);
     for (int k = 0; k < m; ++k) CHECK(s.T_camera_model[k].all_finite());

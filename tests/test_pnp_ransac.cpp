@@ -10,6 +10,7 @@
 #include "core/rng.h"
 #include "support/alloc_guard.h"
 #include "support/pose_scene.h"
+#include "support/draws.h"
 
 #ifdef SCOPETRACK_HAVE_CALIB3D
 #include <opencv2/calib3d.hpp>
@@ -140,7 +141,7 @@ TEST_CASE("pnp ransac: failures are reported and leave the pose alone") {
   auto garbage = scene;
   std::mt19937 rng(1);
   std::uniform_real_distribution<double> ux(0, 1279), uy(0, 719);
-  for (auto& px : garbage.px_ideal) px = Vec2(ux(rng), uy(rng));
+  for (auto& px : garbage.px_ideal) px = test::draw_vec2(ux, uy, rng);
   CHECK_FALSE(ransac.solve(garbage.view(), scene.K, &T, &s));
   CHECK(s.status == PnpRansacStatus::kNoConsensus);
   CHECK(s.iterations == ransac.options().max_iterations);

@@ -10,6 +10,7 @@
 #include "support/alloc_guard.h"
 #include "support/pose_scene.h"
 #include "support/support.h"
+#include "support/draws.h"
 
 using namespace st;
 using st::test::camera_centre_distance_mm;
@@ -27,9 +28,11 @@ TEST_CASE("pose: reprojection Jacobian matches central differences of the left p
     xi << u(rng), u(rng), u(rng), 30 * u(rng), 30 * u(rng), 30 * u(rng);
     const SE3 T = SE3::exp(xi);
     // A point 40-160 mm in front of the camera, expressed in the model frame.
-    const Vec3 p_camera(60 * u(rng), 40 * u(rng), 100 + 60 * u(rng));
+    const Vec3 a = test::draw_vec3(u, rng);
+    const Vec3 p_camera(60 * a.x(), 40 * a.y(), 100 + 60 * a.z());
     const Vec3 p_model = T.inverse() * p_camera;
-    const Vec2 px(640 + 300 * u(rng), 360 + 200 * u(rng));
+    const Vec2 b = test::draw_vec2(u, rng);
+    const Vec2 px(640 + 300 * b.x(), 360 + 200 * b.y());
     Vec2 r;
     Mat26 J;
     REQUIRE(reprojection_residual(K, T, p_model, px, 0.1, &r, &J));
@@ -131,7 +134,7 @@ TEST_CASE("pose: covariance predicts the spread of the estimate") {
     for (std::size_t i = 0; i < scene.p_model.size(); ++i) {  // fresh noise each trial
       const double sigma = std::pow(1.2, scene.octave[i]);
       scene.px_ideal[i] =
-          scene.K.project(scene.T_camera_model * scene.p_model[i]) + sigma * Vec2(g(rng), g(rng));
+          scene.K.project(scene.T_camera_model * scene.p_model[i]) + sigma * test::draw_vec2(g, rng);
     }
     SE3 T = scene.T_camera_model;
     PoseSolverSummary s;

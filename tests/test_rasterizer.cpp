@@ -9,6 +9,7 @@
 #include "support/raster_scene.h"
 #include "support/support.h"
 #include "support/test_ply.h"
+#include "support/draws.h"
 
 using namespace st;
 using namespace st::test;
@@ -60,10 +61,10 @@ TEST_CASE("raster: liver matches the brute-force reference at 20 random poses") 
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   long boundary = 0, pixels = 0, covered = 0;
   for (int i = 0; i < 20; ++i) {
-    Vec3 dir(u(rng), u(rng), u(rng));
+    Vec3 dir = draw_vec3(u, rng);
     if (dir.norm() < 0.1) dir = Vec3(0, 0, 1);
     const double distance = 220.0 + 120.0 * (u(rng) + 1.0);
-    const Vec3 target = centre + 40.0 * Vec3(u(rng), u(rng), u(rng));
+    const Vec3 target = centre + 40.0 * draw_vec3(u, rng);
     const SE3 T = look_at(target, dir, distance, M_PI * u(rng));
     RasterConfig cfg;
     cfg.width = 1280;

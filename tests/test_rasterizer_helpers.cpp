@@ -17,6 +17,7 @@
 #include "support/raster_scene.h"
 #include "support/support.h"
 #include "support/test_ply.h"
+#include "support/draws.h"
 
 using namespace st;
 using namespace st::test;
@@ -97,7 +98,7 @@ TEST_CASE("raster: depth_at interpolates on one surface and never across a step"
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> ux(5, 140), uy(5, 230);
   for (int i = 0; i < 200; ++i) {
-    const Vec2 px(ux(rng), uy(rng));
+    const Vec2 px = draw_vec2(ux, uy, rng);
     float d = 0;
     REQUIRE(r.depth_at(px, &d));
     const double qx = (px.x() - K.cx) / K.fx;

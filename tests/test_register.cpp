@@ -16,6 +16,7 @@
 #include "support/raster_scene.h"
 #include "support/shell.h"
 #include "support/support.h"
+#include "support/draws.h"
 
 using namespace st;
 
@@ -43,7 +44,7 @@ std::vector<RegistrationPair> pick(const Mesh& mesh, const CameraModel& cam, con
     const Vec3 p = mesh.vertex(vertex(rng));
     const Vec3 c = T * p;
     if (c.z() < 10.0) continue;
-    const Vec2 px = cam.project(c) + Vec2(noise(rng), noise(rng));
+    const Vec2 px = cam.project(c) + test::draw_vec2(noise, rng);
     if (!cam.pinhole().in_image(px, 20.0)) continue;
     pairs.push_back({px, p, static_cast<int>(pairs.size()) + 1});
   }
@@ -157,7 +158,10 @@ TEST_CASE("register: too few pairs, picks outside the image and degenerate point
   std::vector<RegistrationPair> random;
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(50, 1200), v(50, 650), m(-50, 50);
-  for (int i = 0; i < 12; ++i) random.push_back({Vec2(u(rng), v(rng)), Vec3(m(rng), m(rng), m(rng)), i + 1});
+  for (int i = 0; i < 12; ++i) {
+    const Vec2 px = test::draw_vec2(u, v, rng);
+    random.push_back({px, test::draw_vec3(m, rng), i + 1});
+  }
   fails_with(random, "do not agree on a pose");
   RegistrationOptions bad;
   bad.inlier_px = 0.0;

@@ -15,6 +15,7 @@
 #include "core/correspondences.h"
 #include "core/mesh.h"
 #include "tests/support/raster_scene.h"
+#include "tests/support/draws.h"
 
 namespace st::test {
 
@@ -35,10 +36,6 @@ struct BaWindow {
   BaJob job;                     // perturbed start values
 };
 
-inline Vec3 random_unit(std::mt19937& rng) {
-  std::normal_distribution<double> g(0.0, 1.0);
-  return Vec3(g(rng), g(rng), g(rng)).normalized();
-}
 
 inline BaWindow make_ba_window(const Mesh& mesh, const Pinhole& K, const BaWindowSpec& spec) {
   std::mt19937 rng(spec.seed);
@@ -67,7 +64,7 @@ inline BaWindow make_ba_window(const Mesh& mesh, const Pinhole& K, const BaWindo
       const Vec2 px = K.project(pc);
       if (pc.z() < 10 || !K.in_image(px, 10.0) || n.dot(centre - p) <= 0) continue;
       const int octave = static_cast<int>(u(rng) * 4) % 4;
-      seen.push_back({k, px + spec.pixel_sigma * std::pow(1.2, octave) * Vec2(g(rng), g(rng)), octave});
+      seen.push_back({k, px + spec.pixel_sigma * std::pow(1.2, octave) * draw_vec2(g, rng), octave});
     }
     int in_window = 0;
     for (const Obs& o : seen) in_window += o.k >= spec.fixed_keyframes ? 1 : 0;

@@ -37,13 +37,22 @@ cv::Mat synthetic_texture(int width, int height, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<int> ux(0, width - 1), uy(0, height - 1), ur(3, 40), ul(60, 200);
   cv::Mat img(height, width, CV_8UC1, cv::Scalar(130));
+  // One draw per statement: the order in which a call's arguments are
+  // evaluated is unspecified (GCC takes these right to left on x86-64, left
+  // to right on aarch64), and draws inside one call made another image on
+  // another platform. The order below is the one x86-64 builds always took,
+  // so the image there is the same as before.
   for (int i = 0; i < width * height / 400; ++i) {
-    const cv::Point c(ux(rng), uy(rng));
+    const int y = uy(rng);
+    const int x = ux(rng);
     const int r = ur(rng);
-    if (i % 2)
-      cv::circle(img, c, r, cv::Scalar(ul(rng)), cv::FILLED, cv::LINE_AA);
-    else
-      cv::rectangle(img, cv::Rect(c.x, c.y, r, ur(rng)), cv::Scalar(ul(rng)), cv::FILLED);
+    const int level = ul(rng);
+    if (i % 2) {
+      cv::circle(img, cv::Point(x, y), r, cv::Scalar(level), cv::FILLED, cv::LINE_AA);
+    } else {
+      const int h = ur(rng);
+      cv::rectangle(img, cv::Rect(x, y, r, h), cv::Scalar(level), cv::FILLED);
+    }
   }
   cv::GaussianBlur(img, img, cv::Size(3, 3), 0.8);
   return img;

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "support/support.h"
+#include "tests/support/draws.h"
 
 namespace st::test {
 
@@ -51,10 +52,6 @@ Vec3 triangle_normal(const LiverMesh& m, int t) {
   return n.normalized();
 }
 
-Vec3 random_unit(std::mt19937& rng) {
-  std::normal_distribution<double> g(0.0, 1.0);
-  return Vec3(g(rng), g(rng), g(rng)).normalized();
-}
 
 // Camera at distance d from surface point q, looking at q from a direction
 // within ~30 deg of the normal n, with a random roll.
@@ -114,7 +111,7 @@ PoseScene make_liver_scene(const PoseSceneOptions& opt) {
     const int oct = pick_octave(rng);
     const double sigma = std::pow(1.2, oct) * opt.noise_px;
     s.p_model.push_back(p);
-    s.px_ideal.push_back(px + sigma * Vec2(noise(rng), noise(rng)));
+    s.px_ideal.push_back(px + sigma * draw_vec2(noise, rng));
     s.octave.push_back(oct);
     s.information.push_back(octave_information(oct));
     s.is_outlier.push_back(0);

@@ -86,7 +86,8 @@ Row bench_closest(const Options& opt, const Mesh& liver) {
   std::vector<Vec3> q;
   for (int i = 0; i < 10000; ++i) {
     const int v = static_cast<int>(u(rng) * (liver.vertex_count() - 1));
-    q.push_back(liver.vertex(v) + 2.0 * u(rng) * test::random_unit(rng));
+    const double reach = 2.0 * u(rng);
+    q.push_back(liver.vertex(v) + reach * test::random_unit(rng));
   }
   const int n = opt.iterations > 0 ? opt.iterations : 30;
   double sink = 0;

@@ -17,6 +17,7 @@
 #include "core/p3p.h"
 #include "core/pnp_ransac.h"
 #include "core/pose_solver.h"
+#include "tests/support/draws.h"
 
 namespace st::bench {
 namespace {
@@ -43,7 +44,8 @@ Scene make_scene(int n, double outlier_ratio, std::uint32_t seed) {
   const SE3 T_model_camera = sc.T_camera_model.inverse();
   const double tilt_x = 0.4 * s(rng), tilt_y = 0.4 * s(rng);
   for (int i = 0; i < n; ++i) {
-    const Vec2 px(8 + u(rng) * 1263, 8 + u(rng) * 703);
+    const Vec2 unit = test::draw_vec2(u, rng);
+    const Vec2 px(8 + unit.x() * 1263, 8 + unit.y() * 703);
     const double xn = (px.x() - sc.K.cx) / sc.K.fx, yn = (px.y() - sc.K.cy) / sc.K.fy;
     // Smooth tilted, bulging surface: depth 60-140 mm.
     const double z = 100 + 60 * (tilt_x * xn + tilt_y * yn) - 25 * (xn * xn + yn * yn) +
@@ -51,7 +53,7 @@ Scene make_scene(int n, double outlier_ratio, std::uint32_t seed) {
     const int octave = static_cast<int>(u(rng) * 8) % 8;
     const double sigma = std::pow(1.2, octave);
     sc.p_model.push_back(T_model_camera * Vec3(xn * z, yn * z, z));
-    sc.px.push_back(px + sigma * Vec2(g(rng), g(rng)));
+    sc.px.push_back(px + sigma * test::draw_vec2(g, rng));
     sc.info.push_back(octave_information(octave));
   }
   const int n_out = static_cast<int>(std::lround(outlier_ratio * n));
@@ -86,8 +88,8 @@ Row bench_lm(const Options& opt, int inliers, double outlier_ratio,
     // Filled by halves: GCC 12 reports a false -Warray-bounds inside Eigen's
     // AVX comma initialiser (host-avx2 board).
     Vec6 xi;
-    xi.head<3>() = Vec3(g(rng), g(rng), g(rng)).normalized() * (2.0 * M_PI / 180.0);
-    xi.tail<3>() = Vec3(g(rng), g(rng), g(rng)).normalized() * 5.0;
+    xi.head<3>() = test::draw_vec3(g, rng).normalized() * (2.0 * M_PI / 180.0);
+    xi.tail<3>() = test::draw_vec3(g, rng).normalized() * 5.0;
     SE3 T = SE3::exp(xi) * sc.T_camera_model;
     PoseSolverSummary s;
     const double t0 = now_ms();
