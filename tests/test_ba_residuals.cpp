@@ -10,8 +10,8 @@
 #include "core/ba_job.h"
 #include "core/ba_residuals.h"
 #include "core/correspondences.h"
-#include "support/track_scene.h"
 #include "support/draws.h"
+#include "support/track_scene.h"
 
 using namespace st;
 using namespace st::test;

@@ -13,8 +13,8 @@
 #include "core/closest_point.h"
 #include "support/alloc_guard.h"
 #include "support/ba_window.h"
-#include "support/track_scene.h"
 #include "support/draws.h"
+#include "support/track_scene.h"
 
 using namespace st;
 using namespace st::test;

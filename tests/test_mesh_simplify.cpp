@@ -11,11 +11,11 @@
 #include "core/closest_point.h"
 #include "core/mesh_simplify.h"
 #include "core/rasterizer.h"
+#include "support/draws.h"
 #include "support/raster_scene.h"
 #include "support/support.h"
 #include "support/track_scene.h"
 #include "tools/sim/mesh_ops.h"
-#include "support/draws.h"
 
 using namespace st;
 using namespace st::test;

@@ -9,8 +9,8 @@
 #include "core/pnp_ransac.h"
 #include "core/rng.h"
 #include "support/alloc_guard.h"
-#include "support/pose_scene.h"
 #include "support/draws.h"
+#include "support/pose_scene.h"
 
 #ifdef SCOPETRACK_HAVE_CALIB3D
 #include <opencv2/calib3d.hpp>

@@ -8,9 +8,9 @@
 #include "core/pose_solver.h"
 #include "core/reprojection.h"
 #include "support/alloc_guard.h"
+#include "support/draws.h"
 #include "support/pose_scene.h"
 #include "support/support.h"
-#include "support/draws.h"
 
 using namespace st;
 using st::test::camera_centre_distance_mm;
@@ -133,8 +133,8 @@ TEST_CASE("pose: covariance predicts the spread of the estimate") {
     auto scene = clean;
     for (std::size_t i = 0; i < scene.p_model.size(); ++i) {  // fresh noise each trial
       const double sigma = std::pow(1.2, scene.octave[i]);
-      scene.px_ideal[i] =
-          scene.K.project(scene.T_camera_model * scene.p_model[i]) + sigma * test::draw_vec2(g, rng);
+      scene.px_ideal[i] = scene.K.project(scene.T_camera_model * scene.p_model[i]) +
+                          sigma * test::draw_vec2(g, rng);
     }
     SE3 T = scene.T_camera_model;
     PoseSolverSummary s;

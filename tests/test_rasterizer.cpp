@@ -5,11 +5,11 @@
 #include <random>
 
 #include "core/rasterizer.h"
+#include "support/draws.h"
 #include "support/raster_reference.h"
 #include "support/raster_scene.h"
 #include "support/support.h"
 #include "support/test_ply.h"
-#include "support/draws.h"
 
 using namespace st;
 using namespace st::test;

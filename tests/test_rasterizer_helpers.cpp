@@ -12,12 +12,12 @@
 #include "core/image.h"
 #include "core/rasterizer.h"
 #include "support/alloc_guard.h"
+#include "support/draws.h"
 #include "support/morph_reference.h"
 #include "support/raster_reference.h"
 #include "support/raster_scene.h"
 #include "support/support.h"
 #include "support/test_ply.h"
-#include "support/draws.h"
 
 using namespace st;
 using namespace st::test;

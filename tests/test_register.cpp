@@ -13,10 +13,10 @@
 #include "hal/file_io.h"
 #include "hal/mesh_file.h"
 #include "registration.h"
+#include "support/draws.h"
 #include "support/raster_scene.h"
 #include "support/shell.h"
 #include "support/support.h"
-#include "support/draws.h"
 
 using namespace st;
 

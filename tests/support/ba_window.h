@@ -14,8 +14,8 @@
 #include "core/camera.h"
 #include "core/correspondences.h"
 #include "core/mesh.h"
-#include "tests/support/raster_scene.h"
 #include "tests/support/draws.h"
+#include "tests/support/raster_scene.h"
 
 namespace st::test {
 
@@ -35,7 +35,6 @@ struct BaWindow {
   std::vector<Vec3> p_true;      // per job point
   BaJob job;                     // perturbed start values
 };
-
 
 inline BaWindow make_ba_window(const Mesh& mesh, const Pinhole& K, const BaWindowSpec& spec) {
   std::mt19937 rng(spec.seed);

@@ -52,7 +52,6 @@ Vec3 triangle_normal(const LiverMesh& m, int t) {
   return n.normalized();
 }
 
-
 // Camera at distance d from surface point q, looking at q from a direction
 // within ~30 deg of the normal n, with a random roll.
 SE3 look_at(const Vec3& q, const Vec3& n, double d, std::mt19937& rng) {
