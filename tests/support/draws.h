@@ -11,27 +11,24 @@
 
 namespace st::test {
 
-template <typename Dist, typename Rng>
-Vec2 draw_vec2(Dist& d, Rng& rng) {
-  const double x = d(rng);
-  const double y = d(rng);
-  return {x, y};
-}
-
-template <typename Dist, typename Rng>
-Vec3 draw_vec3(Dist& d, Rng& rng) {
-  const double x = d(rng);
-  const double y = d(rng);
-  const double z = d(rng);
-  return {x, y, z};
-}
-
 // x from dx, then y from dy (an image position from per-axis ranges).
 template <typename DistX, typename DistY, typename Rng>
 Vec2 draw_vec2(DistX& dx, DistY& dy, Rng& rng) {
   const double x = dx(rng);
   const double y = dy(rng);
   return {x, y};
+}
+
+template <typename Dist, typename Rng>
+Vec2 draw_vec2(Dist& d, Rng& rng) {
+  return draw_vec2(d, d, rng);
+}
+
+template <typename Dist, typename Rng>
+Vec3 draw_vec3(Dist& d, Rng& rng) {
+  const Vec2 xy = draw_vec2(d, rng);
+  const double z = d(rng);
+  return {xy.x(), xy.y(), z};
 }
 
 // A direction uniform on the unit sphere.
