@@ -1,5 +1,6 @@
 #include "core/ba_job.h"
 
+#include <cmath>
 #include <string>
 
 namespace st {
@@ -32,7 +33,20 @@ Status BaJob::configure(int max_keyframes, int max_points, int max_observations)
 
 void BaJob::clear() {
   keyframe_count = point_count = observation_count = 0;
+  prior = BaPosePrior{};
   summary = BaSummary{};
+}
+
+bool BaJob::set_prior(int keyframe_index, const SE3& T_camera_model, double sigma_rad,
+                      double sigma_mm) {
+  if (keyframe_index < 0 || keyframe_index >= keyframe_count || !T_camera_model.all_finite() ||
+      !(sigma_rad > 0) || !std::isfinite(sigma_rad) || !(sigma_mm > 0) || !std::isfinite(sigma_mm))
+    return false;
+  prior.keyframe = keyframe_index;
+  pose_to_params(T_camera_model, prior.pose);
+  prior.sigma_rad = sigma_rad;
+  prior.sigma_mm = sigma_mm;
+  return true;
 }
 
 int BaJob::add_keyframe(int id, int frame, const SE3& T_camera_model, bool fixed) {

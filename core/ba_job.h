@@ -47,6 +47,19 @@ struct BaObservation {
 
 enum class BaKind : std::uint8_t { kWindow, kGlobal };
 
+// A Gaussian prior on one keyframe's pose: the registration of the first
+// frame (T_camera_model_init, "the coarse registration" of
+// sequence-format.md) with its uncertainty, per axis, as a rotation (rad)
+// and a translation (mm) of the camera frame. With a prior, BundleAdjuster
+// holds no keyframe for the gauge: the mesh (shape residual) and the prior
+// fix the frame, and every pose, the first one too, moves to agree with the
+// observations (core/bundle_adjustment.h).
+struct BaPosePrior {
+  std::int32_t keyframe = -1;  // index into BaJob::keyframes; -1: no prior
+  double pose[kPoseParams] = {0, 0, 0, 1, 0, 0, 0};
+  double sigma_rad = 0, sigma_mm = 0;
+};
+
 struct BaSummary {
   bool usable = false;         // solved, finite: the tracker may apply it
   int keyframes = 0, fixed_keyframes = 0, points = 0, observations = 0;
@@ -57,6 +70,10 @@ struct BaSummary {
   double initial_cost = 0, final_cost = 0;
   double solver_ms = 0;        // Ceres' own measure of the solve
   int points_rejected = 0;     // moved farther than the options allow: not applied
+  bool prior_tested =
+      false;  // the job's pose prior was tested (BundleAdjusterOptions::prior_release_f)
+  bool prior_used = false;  // ... and the freed solution kept (the prior's keyframe moved)
+  double prior_f = 0;       // the test's F statistic
   double mean_surface_distance_mm = -1;  // of the points after the solve (when a mesh was given)
 };
 
@@ -67,6 +84,7 @@ struct BaJob {
   std::vector<BaPoint> points;
   std::vector<BaObservation> observations;
   int keyframe_count = 0, point_count = 0, observation_count = 0;
+  BaPosePrior prior;  // cleared by clear()
   BaSummary summary;
 
   // Sizes the arrays (allocates). Each maximum >= 1.
@@ -79,6 +97,9 @@ struct BaJob {
   int add_keyframe(int id, int frame, const SE3& T_camera_model, bool fixed);
   int add_point(int id, int created_frame, const Vec3& p_model);
   bool add_observation(int keyframe_index, int point_index, const Vec2& px_ideal, double info);
+  // Puts a prior on keyframe keyframe_index (already added); false when the
+  // index, pose or sigmas are not usable (sigmas must be finite and > 0).
+  bool set_prior(int keyframe_index, const SE3& T_camera_model, double sigma_rad, double sigma_mm);
   Vec3 point(int i) const;
   SE3 pose(int i) const { return pose_from_params(keyframes[static_cast<std::size_t>(i)].pose); }
 };

@@ -118,6 +118,35 @@ class PlaneCost final : public ceres::SizedCostFunction<2, 3> {
   double sqrt_w_ = 0;
 };
 
+// The prior on one pose block: r = W (delta + e0), e0 = log(T0 T_prior^-1)
+// (the handed-over pose's offset from the prior), W = diag(1/sigma_rad x 3,
+// 1/sigma_mm x 3). First order in delta: log(exp(delta) X) = delta + log(X)
+// up to a term in |delta| |e0| (a window's delta of a few mrad times a
+// registration error of a few degrees or mm: far below the sigmas).
+class PosePriorCost final : public ceres::SizedCostFunction<6, 6> {
+ public:
+  void set(const SE3& T0_camera_model, const SE3& T_prior, double sigma_rad, double sigma_mm) {
+    e0_ = (T0_camera_model * T_prior.inverse()).log();
+    for (int k = 0; k < 3; ++k) {
+      w_[k] = 1.0 / sigma_rad;
+      w_[k + 3] = 1.0 / sigma_mm;
+    }
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    for (int k = 0; k < 6; ++k) residuals[k] = w_[k] * (parameters[0][k] + e0_[k]);
+    if (jacobians && jacobians[0]) {
+      for (int k = 0; k < 36; ++k) jacobians[0][k] = 0.0;
+      for (int k = 0; k < 6; ++k) jacobians[0][k * 6 + k] = w_[k];
+    }
+    return true;
+  }
+
+ private:
+  Vec6 e0_ = Vec6::Zero();
+  double w_[6] = {1, 1, 1, 1, 1, 1};
+};
+
 // Stops the solve once the gradient (max norm) has fallen below a fraction
 // of its value at the start. Ceres' own tests are absolute (gradient) or
 // need the next step solved and evaluated (function, parameter tolerance):
@@ -149,6 +178,7 @@ struct BundleAdjuster::Impl {
   std::unique_ptr<ReprojectionCost[]> reprojection_costs;
   std::unique_ptr<ShapeCost[]> shape_costs;
   std::unique_ptr<PlaneCost[]> plane_costs;
+  PosePriorCost prior_cost;                  // the job's pose prior (at most one)
   std::unique_ptr<PoseCache[]> pose_caches;  // per job keyframe, kMaxKeyframes
   std::unique_ptr<double[]> deltas;          // 6 per job keyframe: the pose blocks Ceres solves
   std::unique_ptr<RelativeGradientStop> gradient_stop;
@@ -164,13 +194,17 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
                                  int max_points, int max_observations) {
   configured_ = false;
   if (!(options.w_shape >= 0) || !std::isfinite(options.w_shape) || !(options.shape_huber_mm > 0) ||
-      !(options.reprojection_huber > 0) || options.max_iterations < 1 || !(options.max_time_s > 0) ||
-      !(options.min_depth_mm > 0) || !(options.max_point_shift_mm > 0) || options.surface_distance_samples < 0 ||
+      !(options.reprojection_huber > 0) || options.max_iterations < 1 ||
+      !(options.max_time_s > 0) || !(options.min_depth_mm > 0) ||
+      !(options.max_point_shift_mm > 0) || options.surface_distance_samples < 0 ||
       options.max_observations_per_point < 0 || !(options.relative_gradient_tolerance >= 0) ||
-      !(options.relative_gradient_tolerance < 1) || options.max_observations_per_point > kMaxObservationsPerPointCap ||
+      !(options.relative_gradient_tolerance < 1) ||
+      options.max_observations_per_point > kMaxObservationsPerPointCap ||
       options.max_fixed_observations_per_point < 0 ||
-      options.max_fixed_observations_per_point > kMaxObservationsPerPointCap || options.min_observations_per_point < 1 ||
-      options.min_observations_per_point > 255 || !(options.plane_reuse_mm >= 0))
+      options.max_fixed_observations_per_point > kMaxObservationsPerPointCap ||
+      options.min_observations_per_point < 1 || options.min_observations_per_point > 255 ||
+      !(options.plane_reuse_mm >= 0) || !(options.prior_release_f >= 0) ||
+      !std::isfinite(options.prior_release_f))
     return make_error("bundle adjustment: options out of range (w_shape >= 0, thresholds and limits > 0)");
   if (!pinhole_is_usable(K)) return make_error("bundle adjustment: the pinhole is not usable");
   if (max_points < 1 || max_points > kMaxMapPoints || max_observations < 1)
@@ -198,6 +232,8 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   max_observations_ = max_observations;
   point_observed_.assign(static_cast<std::size_t>(max_points), 0);
   held_.assign(static_cast<std::size_t>(kMaxKeyframes), 0);
+  saved_poses_.assign(static_cast<std::size_t>(kMaxKeyframes) * kPoseParams, 0.0);
+  saved_points_.assign(static_cast<std::size_t>(max_points) * 3, 0.0);
   newest_frames_.assign(static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_observations_per_point)), -1);
   newest_fixed_frames_.assign(
       static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_fixed_observations_per_point)), -1);
@@ -237,12 +273,18 @@ bool BundleAdjuster::valid(const BaJob& job) const {
         !std::isfinite(o.x_ideal) || !std::isfinite(o.y_ideal) || !(o.info > 0) || !std::isfinite(o.info))
       return false;
   }
+  const BaPosePrior& prior = job.prior;
+  if (prior.keyframe >= job.keyframe_count || !pose_from_params(prior.pose).all_finite())
+    return false;
+  if (prior.keyframe >= 0 && (!(prior.sigma_rad > 0) || !std::isfinite(prior.sigma_rad) ||
+                              !(prior.sigma_mm > 0) || !std::isfinite(prior.sigma_mm)))
+    return false;
   return true;
 }
 
 // Adds every block and residual to impl_->problem; returns the number of
 // reprojection residuals.
-int BundleAdjuster::build(BaJob* job) {
+int BundleAdjuster::build(BaJob* job, bool free_prior) {
   ceres::Problem& problem = *impl_->problem;
   int fixed = 0, oldest = 0;
   for (int i = 0; i < job->keyframe_count; ++i) {
@@ -253,13 +295,31 @@ int BundleAdjuster::build(BaJob* job) {
     fixed += k.fixed ? 1 : 0;
     if (k.frame < job->keyframes[static_cast<std::size_t>(oldest)].frame) oldest = i;
   }
-  if (fixed == 0) {  // gauge: hold the oldest keyframe
+  // A job with a pose prior is solved twice (solve()). Held: the prior's
+  // keyframe is held where it is. Freed: with the shape residual on, the
+  // prior fixes the frame itself (the mesh fixes the structure's pose and
+  // scale, the prior the directions the observations leave open), so no
+  // keyframe is held and the prior's keyframe moves too. Without a prior
+  // the oldest keyframe is held for the gauge when the job holds none.
+  const int prior_kf = job->prior.keyframe;
+  const bool use_prior = free_prior && prior_kf >= 0 && !held_[static_cast<std::size_t>(prior_kf)];
+  if (prior_kf >= 0 && !free_prior && !held_[static_cast<std::size_t>(prior_kf)]) {
+    held_[static_cast<std::size_t>(prior_kf)] = 1;
+    ++fixed;
+  }
+  if (fixed == 0 && !use_prior) {  // gauge: hold the oldest keyframe
     held_[static_cast<std::size_t>(oldest)] = 1;
     fixed = 1;
   }
   // Held poses stay out of the problem (their residuals take the point only).
   for (int i = 0; i < job->keyframe_count; ++i)
     if (!held_[static_cast<std::size_t>(i)]) problem.AddParameterBlock(pose_delta_block(i), 6);
+  if (use_prior) {
+    impl_->prior_cost.set(job->pose(prior_kf), pose_from_params(job->prior.pose),
+                          job->prior.sigma_rad, job->prior.sigma_mm);
+    problem.AddResidualBlock(&impl_->prior_cost, nullptr, pose_delta_block(prior_kf));
+    job->summary.prior_used = true;
+  }
   job->summary.fixed_keyframes = fixed;
   if (options_.max_observations_per_point > 0)
     newest_frames_per_point(*job, options_.max_observations_per_point, false, &newest_frames_);
@@ -396,12 +456,12 @@ static std::shared_ptr<ceres::ParameterBlockOrdering> schur_ordering(BaJob* job,
   return ordering;
 }
 
-bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
+bool BundleAdjuster::solve_once(BaJob* job, bool free_prior, int max_iterations, double max_time_s,
+                                SolveStats* stats) {
   job->summary = BaSummary{};
-  if (!configured_ || !valid(*job)) return false;
   ceres::Problem problem(impl_->problem_options);
   impl_->problem = &problem;
-  const int used = build(job);
+  const int used = build(job, free_prior);
   impl_->problem = nullptr;
   job->summary.keyframes = job->keyframe_count;
   job->summary.points = job->point_count;
@@ -416,7 +476,68 @@ bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
   apply_pose_deltas(job);
   finish(job, s.initial_cost, s.final_cost, s.total_time_in_seconds, static_cast<int>(s.iterations.size()),
          s.IsSolutionUsable());
+  if (stats) {
+    stats->residuals = s.num_residuals;
+    stats->parameters = s.num_effective_parameters;
+  }
   return job->summary.usable;
+}
+
+bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
+  job->summary = BaSummary{};
+  if (!configured_ || !valid(*job)) return false;
+  const int prior_kf = job->prior.keyframe;
+  const bool test_prior = prior_kf >= 0 && options_.w_shape > 0 &&
+                          !job->keyframes[static_cast<std::size_t>(prior_kf)].fixed;
+  if (!test_prior) return solve_once(job, false, max_iterations, max_time_s, nullptr);
+  // 1. The prior's keyframe held (the registration as given).
+  if (!solve_once(job, false, max_iterations, max_time_s, nullptr)) return false;
+  const BaSummary held = job->summary;
+  save_solution(*job);
+  // 2. From there, the prior's keyframe freed. Kept only if the data asks
+  // for it (see BundleAdjusterOptions::prior_release_f).
+  SolveStats stats;
+  const bool ok = solve_once(job, true, max_iterations, max_time_s, &stats);
+  const int dof = stats.residuals - stats.parameters;
+  const double f =
+      ok && dof > 0 && job->summary.final_cost > 0
+          ? ((held.final_cost - job->summary.final_cost) / 6.0) / (job->summary.final_cost / dof)
+          : 0.0;
+  const bool release = ok && (options_.prior_release_f == 0 || f > options_.prior_release_f);
+  if (!release) {
+    restore_solution(job);
+    const int iterations = job->summary.iterations;
+    const double solver_ms = job->summary.solver_ms;
+    job->summary = held;
+    job->summary.iterations += iterations;
+    job->summary.solver_ms += solver_ms;
+  } else {
+    job->summary.iterations += held.iterations;
+    job->summary.solver_ms += held.solver_ms;
+    job->summary.plane_queries += held.plane_queries;
+  }
+  job->summary.prior_tested = true;
+  job->summary.prior_used = release;
+  job->summary.prior_f = f;
+  return job->summary.usable;
+}
+
+void BundleAdjuster::save_solution(const BaJob& job) {
+  for (int i = 0; i < job.keyframe_count; ++i)
+    std::copy_n(job.keyframes[static_cast<std::size_t>(i)].pose, kPoseParams,
+                &saved_poses_[static_cast<std::size_t>(i) * kPoseParams]);
+  for (int i = 0; i < job.point_count; ++i)
+    std::copy_n(job.points[static_cast<std::size_t>(i)].p_model, 3,
+                &saved_points_[static_cast<std::size_t>(i) * 3]);
+}
+
+void BundleAdjuster::restore_solution(BaJob* job) const {
+  for (int i = 0; i < job->keyframe_count; ++i)
+    std::copy_n(&saved_poses_[static_cast<std::size_t>(i) * kPoseParams], kPoseParams,
+                job->keyframes[static_cast<std::size_t>(i)].pose);
+  for (int i = 0; i < job->point_count; ++i)
+    std::copy_n(&saved_points_[static_cast<std::size_t>(i) * 3], 3,
+                job->points[static_cast<std::size_t>(i)].p_model);
 }
 
 double* BundleAdjuster::pose_delta_block(int keyframe) {

@@ -8,9 +8,11 @@
 // pose (core/ba_residuals.h); keyframes flagged fixed are held constant
 // (when a job has none, the oldest keyframe is fixed to remove the gauge
 // freedom left when w_shape = 0): a held pose is no parameter block, its
-// residuals take the point alone. Single-threaded, dense Schur complement (a
-// window has few poses and many points), bounded iterations and solver
-// time, and a stop once the gradient has fallen to a fraction of its start.
+// residuals take the point alone. A job may put a prior on one keyframe's
+// pose (the tracker: the registration of frame 0); that keyframe is then
+// freed only where the data says the prior is off (prior_release_f). Single-threaded, dense Schur
+// complement (a window has few poses and many points), bounded iterations and solver time, and a
+// stop once the gradient has fallen to a fraction of its start.
 //
 // Memory: the cost-function objects are pooled (sized in configure()) and
 // not owned by the Problem; Ceres itself allocates its Problem, Program and
@@ -58,6 +60,19 @@ struct BundleAdjusterOptions {
                                 // point (same map slot and stamp) stays within this distance of where
                                 // the plane was taken (curvature error <= d^2 / 2R: ~4 um at R = 5 mm);
                                 // 0: one closest-point query per point and solve
+  // A job's pose prior (BaJob::prior, the tracker's registration of frame
+  // 0) is tested, not simply applied: the job is solved with the prior's
+  // keyframe held (the registration as given), then again from there with
+  // it free under the prior. The free solution is kept only if it fits the
+  // data significantly better: F = ((C_held - C_free) / 6) / (C_free / dof)
+  // above this (C: final cost, dof: residuals - parameters). Under a right
+  // registration and Gaussian noise F follows F(6, dof): P(F > 6.3) ~ 1e-6
+  // for the thousands of residuals of a window. Why: freed, the first pose
+  // also drifts with the noise along the directions the organ's shape
+  // barely fixes (a smooth patch), which costs accuracy when the
+  // registration was right; a coarse registration stands out by far
+  // (tests: F ~ 300 at 1 deg / 4 mm, ~ 1.7 when exact). 0: always free.
+  double prior_release_f = 6.3;
   int surface_distance_samples = 128;  // summary.mean_surface_distance_mm over at most this
                                        // many evenly spaced points (0: all); one exact
                                        // closest-point query each (~1.6 us)
@@ -95,7 +110,14 @@ class BundleAdjuster {
  private:
   struct Impl;  // the Ceres objects (kept out of this header: glog macros)
   bool valid(const BaJob& job) const;
-  int build(BaJob* job);
+  struct SolveStats {
+    int residuals = 0, parameters = 0;  // Ceres' scalar residuals and effective parameters
+  };
+  bool solve_once(BaJob* job, bool free_prior, int max_iterations, double max_time_s,
+                  SolveStats* stats);
+  void save_solution(const BaJob& job);
+  void restore_solution(BaJob* job) const;
+  int build(BaJob* job, bool free_prior);
   void newest_frames_per_point(const BaJob& job, int cap, bool fixed_only, std::vector<std::int32_t>* rows) const;
   bool keep_observation(const BaJob& job, const BaObservation& o) const;
   bool usable_observation(const BaJob& job, const BaObservation& o) const;
@@ -113,6 +135,8 @@ class BundleAdjuster {
   std::vector<std::uint8_t> held_;            // per job keyframe: pose held constant (fixed or gauge), not a block
   std::vector<std::int32_t> newest_frames_;   // per job point: max_observations_per_point newest frames, descending
   std::vector<std::int32_t> newest_fixed_frames_;  // the same over fixed keyframes, max_fixed_observations_per_point
+  std::vector<double> saved_poses_,
+      saved_points_;                          // the held solution while the freed one is tested
   std::vector<ShapePlane> planes_;            // per job point: tangent plane at the start value
   // Per map point slot (BaPoint::id < max_points): the plane, where it was
   // taken and the point's stamp; sized in configure().
