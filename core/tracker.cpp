@@ -89,6 +89,14 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
       c.ba_window_keyframes > kMaxKeyframes || c.ba_max_iterations < 1 || c.ba_global_max_iterations < 1 ||
       !(c.ba_max_time_s > 0) || !(c.ba_global_max_time_s > 0) || c.ba_max_observations < 1)
     return err("bundle adjustment settings out of range (w_shape >= 0, window in [2, kMaxKeyframes], limits > 0)");
+  if (!(c.registration_sigma_deg >= 0) || !std::isfinite(c.registration_sigma_deg) ||
+      !(c.registration_sigma_mm >= 0) || !std::isfinite(c.registration_sigma_mm) ||
+      (c.registration_sigma_deg > 0) != (c.registration_sigma_mm > 0) ||
+      c.ba_registration_keyframes < 0 || !(c.registration_release_f >= 0) ||
+      !std::isfinite(c.registration_release_f))
+    return err(
+        "registration prior out of range (both sigmas 0, or both finite and > 0; keyframes >= 0; "
+        "release F >= 0)");
   if (c.local_map_per_cell < 0 || c.local_map_per_cell > 8) return err("local_map_per_cell outside [0, 8]");
   if (!(c.keyframe_max_motion_px > 0.f)) return err("keyframe_max_motion_px must be positive");
   if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
@@ -216,6 +224,8 @@ void TrackerImpl::start() {
   ref_keyframe_ = -1;
   reloc_cursor_ = 0;
   ba_window_pending_ = ba_global_pending_ = false;
+  init_keyframe_ = init_keyframe_frame_ = -1;
+  keyframes_since_global_ = 0;
   ba_min_version_ = ba_version_ + 1;  // a job still out refers to the map just cleared
 }
 
@@ -244,7 +254,14 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
   if (occluder_pixels >= 0) r.times_ms[static_cast<int>(Stage::kOccluder)] = t_occluder - t_valid;
   r.occluder_pixels = occluder_pixels;
   r.occluder_refused = occluder_refused;
-  if (r.keyframe) ba_window_pending_ = true;
+  if (r.keyframe) {
+    ba_window_pending_ = true;
+    if (config_.ba_registration_keyframes > 0 && registration_free() &&
+        ++keyframes_since_global_ >= config_.ba_registration_keyframes) {
+      ba_global_pending_ = true;
+      keyframes_since_global_ = 0;
+    }
+  }
   if (r.state == TrackState::kRelocalised && config_.ba_global_after_reloc) ba_global_pending_ = true;
   if (r.state == TrackState::kInitialised) ba_window_pending_ = ba_global_pending_ = false;  // a fresh map
   r.ba_applied = ba_applied;

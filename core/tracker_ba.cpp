@@ -37,6 +37,14 @@ bool TrackerImpl::apply_ba() {
   return usable;
 }
 
+bool TrackerImpl::registration_free() const {
+  if (!(config_.registration_sigma_deg > 0) || init_keyframe_ < 0 ||
+      init_keyframe_ >= map_.keyframe_capacity())
+    return false;
+  const Keyframe& kf = map_.keyframe(init_keyframe_);
+  return kf.alive && kf.frame == init_keyframe_frame_;
+}
+
 // Hands out the pending job (global first: it covers the window too).
 // False when nothing is pending, BA is off, or the channel is busy (the
 // job stays pending: deferred to a later frame).
@@ -104,6 +112,13 @@ void TrackerImpl::fill_job(BaJob* job, bool global) {
     if (index >= 0) add_job_links(job, id, index, true);
   }
   for (int j = window; j < n; ++j) add_job_links(job, ba_order_[static_cast<std::size_t>(j)], -1, false);
+  // The registration prior, when frame 0's keyframe is free in this job.
+  if (registration_free()) {
+    const int index = ba_keyframe_index_[static_cast<std::size_t>(init_keyframe_)];
+    if (index >= 0 && !job->keyframes[static_cast<std::size_t>(index)].fixed)
+      job->set_prior(index, T_init_, config_.registration_sigma_deg * M_PI / 180.0,
+                     config_.registration_sigma_mm);
+  }
   // Reset the index arrays for the next job.
   for (int i = 0; i < job->point_count; ++i) ba_point_index_[static_cast<std::size_t>(job->points[static_cast<std::size_t>(i)].id)] = -1;
   for (int i = 0; i < job->keyframe_count; ++i)

@@ -170,6 +170,11 @@ class TrackerImpl {
   // Bundle adjustment: jobs go out through ba_channel_ (not owned).
   BaChannel* ba_channel_ = nullptr;
   bool ba_window_pending_ = false, ba_global_pending_ = false;
+  // Frame 0's keyframe (slot and stamp; -1: none) while it carries the
+  // registration prior, and the keyframes since the last global BA.
+  int init_keyframe_ = -1, init_keyframe_frame_ = -1;
+  int keyframes_since_global_ = 0;
+  bool registration_free() const;     // the prior applies: sigmas > 0 and frame 0's keyframe alive
   std::uint32_t ba_version_ = 0;      // of the last job handed out (never reset)
   std::uint32_t ba_min_version_ = 0;  // jobs below this came from before start(): not applied
   std::vector<std::int32_t> ba_point_index_;     // per map point slot: its index in the job being filled

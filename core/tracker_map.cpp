@@ -28,6 +28,9 @@ TrackResult TrackerImpl::initialise(GrayView luma, int frame_index) {
   map_.clear();
   ref_keyframe_ = -1;
   const int kf = add_keyframe(T_init_, frame_index, false);
+  init_keyframe_ = kf;
+  init_keyframe_frame_ = kf >= 0 ? map_.keyframe(kf).frame : -1;
+  keyframes_since_global_ = 0;
   lap(Stage::kMap, &t, &r);
   initialised_ = true;
   lost_ = false;

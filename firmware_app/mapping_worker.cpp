@@ -20,6 +20,7 @@ Status MappingWorker::configure(const TrackerConfig& config, const Mesh& mesh, c
   o.w_shape = config.w_shape;
   o.max_iterations = config.ba_max_iterations;
   o.max_time_s = config.ba_max_time_s;
+  o.prior_release_f = config.registration_release_f;
   if (config.ba_lag_frames > 0) {  // deterministic: iterations only (the solves' time limits vary with the machine)
     o.max_time_s = kUnboundedSolveS;
     config_.ba_global_max_time_s = kUnboundedSolveS;
@@ -97,6 +98,15 @@ void MappingWorker::solve_one() {
     window_observations_ += job_.summary.observations;
     window_fixed_observations_ += job_.summary.fixed_observations;
   }
+  if (job_.summary.prior_tested) ++stats_.registration_tests;
+  if (ok && job_.summary.prior_used) {
+    ++stats_.registration_releases;
+    const SE3 T0 = job_.pose(job_.prior.keyframe), T_init = pose_from_params(job_.prior.pose);
+    stats_.registration_shift_deg = pose_delta(T_init, T0).angle_deg;
+    stats_.registration_shift_mm =
+        (T0.inverse().translation() - T_init.inverse().translation()).norm();
+    stats_.registration_f = job_.summary.prior_f;
+  }
   if (!ok) ++stats_.unusable;
   if (ok) stats_.mean_surface_distance_mm = job_.summary.mean_surface_distance_mm;
 }
@@ -126,6 +136,11 @@ void MappingWorker::append_summary(std::vector<std::pair<std::string, double>>* 
   fields->emplace_back("ba_max_allocations_per_solve", static_cast<double>(s.max_allocations_per_solve));
   fields->emplace_back("ba_mean_surface_distance_mm", s.mean_surface_distance_mm);
   fields->emplace_back("ba_thread_nice", s.thread_nice);
+  fields->emplace_back("ba_registration_tests", s.registration_tests);
+  fields->emplace_back("ba_registration_releases", s.registration_releases);
+  fields->emplace_back("ba_registration_shift_deg", s.registration_shift_deg);
+  fields->emplace_back("ba_registration_shift_mm", s.registration_shift_mm);
+  fields->emplace_back("ba_registration_f", s.registration_f);
 }
 
 }  // namespace st::app

@@ -43,6 +43,12 @@ struct MappingStats {
   double mean_window_observations = 0;          // reprojection residuals per window solve
   double mean_window_fixed_observations = 0;    // of those: from fixed keyframes
   int thread_nice = -1;                         // the mapping thread's nice value (-1: never ran)
+  // The registration prior (TrackerConfig::registration_sigma_deg): jobs
+  // that tested it, how many of those freed frame 0's pose, and for the
+  // last that did, frame 0's pose against T_camera_model_init (rotation,
+  // camera centre) and the test's F.
+  int registration_tests = 0, registration_releases = 0;
+  double registration_shift_deg = 0, registration_shift_mm = 0, registration_f = 0;
 };
 
 class MappingWorker final : public BaChannel {

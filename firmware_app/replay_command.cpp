@@ -1,6 +1,8 @@
-// scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
+// scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask]
+// [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
 //   [--fast-reference-luma L] [--fast-reference-contrast C] [--no-descriptor-refresh] [--w-shape W]
-//   [--max-raster-triangles N] [--ring N]:
+//   [--max-raster-triangles N] [--registration-sigma-deg D --registration-sigma-mm M]
+//   [--registration-keyframes N] [--ring N]:
 // replays a sequence through the tracker (hal/replay.h) into the output
 // folder. Exit status: 0 done, 1 the sequence or the replay failed (a clear
 // message on stderr; the output written so far stays), 2 bad command line.
@@ -40,6 +42,11 @@ struct ReplayArgs {
   double fast_reference_luma = TrackerConfig{}.fast_reference_luma;  // --fast-reference-luma L (0: off, the ablation)
   double fast_reference_contrast = TrackerConfig{}.fast_reference_contrast;  // --fast-reference-contrast C (0: off)
   bool refresh_descriptors = true;  // --no-descriptor-refresh: map points keep their first descriptor (ablation)
+  // --registration-sigma-deg D --registration-sigma-mm M (both, or neither: the registration
+  // taken as exact), --registration-keyframes N: refining frame 0's registration (TrackerConfig)
+  double registration_sigma_deg = TrackerConfig{}.registration_sigma_deg;
+  double registration_sigma_mm = TrackerConfig{}.registration_sigma_mm;
+  int registration_keyframes = TrackerConfig{}.ba_registration_keyframes;
   int ring_slots = 6;
   std::string stream;           // --stream ENDPOINT: serve consoles (firmware_app/stream_link.h)
   int stream_wait = 0;          // --stream-wait N: start once N consoles are connected
@@ -101,6 +108,25 @@ bool parse_args(Args args, ReplayArgs* a) {
         std::fprintf(stderr, "scopetrack: --fast-reference-contrast takes a contrast in 0..255 (0: off)\n");
         return false;
       }
+    } else if (!std::strcmp(arg, "--registration-sigma-deg") && has_value) {
+      if (!st::parse_double_in(args[static_cast<std::size_t>(++i)], 0.001, 90.0,
+                               &a->registration_sigma_deg)) {
+        std::fprintf(stderr,
+                     "scopetrack: --registration-sigma-deg takes an angle in 0.001..90 degrees\n");
+        return false;
+      }
+    } else if (!std::strcmp(arg, "--registration-sigma-mm") && has_value) {
+      if (!st::parse_double_in(args[static_cast<std::size_t>(++i)], 0.001, 1000.0,
+                               &a->registration_sigma_mm)) {
+        std::fprintf(stderr,
+                     "scopetrack: --registration-sigma-mm takes a distance in 0.001..1000 mm\n");
+        return false;
+      }
+    } else if (!std::strcmp(arg, "--registration-keyframes") && has_value) {
+      long long n = 0;
+      if (!int_value(&i, 0, 1000, "a keyframe count in 0..1000 (0: no periodic global BA)", &n))
+        return false;
+      a->registration_keyframes = static_cast<int>(n);
     } else if (!std::strcmp(arg, "--no-descriptor-refresh")) {
       a->refresh_descriptors = false;
     } else if (!std::strcmp(arg, "--ring") && has_value) {
@@ -115,6 +141,11 @@ bool parse_args(Args args, ReplayArgs* a) {
       std::fprintf(stderr, "scopetrack: unknown or incomplete argument '%s'\n", arg);
       return false;
     }
+  }
+  if ((a->registration_sigma_deg > 0) != (a->registration_sigma_mm > 0)) {
+    std::fprintf(stderr,
+                 "scopetrack: --registration-sigma-deg and --registration-sigma-mm go together\n");
+    return false;
   }
   if (a->sequence.empty() || a->out.empty()) {
     std::fprintf(stderr, "scopetrack: --sequence DIR and --out DIR are both required\n");
@@ -137,6 +168,9 @@ TrackerConfig tracker_config(const LoadedSequence& seq, const ReplayArgs& a) {
   c.fast_reference_luma = a.fast_reference_luma;
   c.fast_reference_contrast = a.fast_reference_contrast;
   c.refresh_descriptors = a.refresh_descriptors;
+  c.registration_sigma_deg = a.registration_sigma_deg;
+  c.registration_sigma_mm = a.registration_sigma_mm;
+  c.ba_registration_keyframes = a.registration_keyframes;
   c.now_ns = &platform::monotonic_ns;
   return c;
 }
@@ -177,12 +211,16 @@ std::unique_ptr<StreamLink> start_stream_link(const ReplayArgs& a, const LoadedS
 int run_replay(Args argv) {
   ReplayArgs args;
   if (!parse_args(argv, &args)) {
-    std::fprintf(stderr, "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask]"
-                 " [--no-image-motion] [--no-ba]"
-                 " [--no-shape-ba] [--ba-lag N] [--fast-reference-luma L] [--fast-reference-contrast C]"
-                 " [--no-descriptor-refresh] [--w-shape W] [--max-raster-triangles N]"
-                 " [--ring N]\n"
-                 "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
+    std::fprintf(
+        stderr,
+        "usage: scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask]"
+        " [--no-image-motion] [--no-ba]"
+        " [--no-shape-ba] [--ba-lag N] [--fast-reference-luma L] [--fast-reference-contrast C]"
+        " [--no-descriptor-refresh] [--w-shape W] [--max-raster-triangles N]"
+        " [--registration-sigma-deg D --registration-sigma-mm M]"
+        " [--registration-keyframes N]"
+        " [--ring N]\n"
+        "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
     return 2;
   }
   auto seq = load_sequence(args.sequence);

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 #include "core/capacity.h"
@@ -100,6 +101,18 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
   for (double v : {-1.0, 1e6, std::nan("")})
     rejects_value(&TrackerConfig::confirm_agreement_px, v, "confirm_agreement_px");
   for (int v : {-1, 1001}) rejects_value(&TrackerConfig::ba_lag_frames, v, "ba_lag_frames");
+  for (double v : {-1.0, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    rejects_value(&TrackerConfig::registration_sigma_deg, v, "registration prior");
+    rejects_value(&TrackerConfig::registration_sigma_mm, v, "registration prior");
+    rejects_value(&TrackerConfig::registration_release_f, v, "registration prior");
+  }
+  rejects_value(&TrackerConfig::registration_sigma_deg, 1.0,
+                "registration prior");  // one sigma set, the other 0
+  rejects_value(&TrackerConfig::ba_registration_keyframes, -1, "registration prior");
+  c = good;
+  c.registration_sigma_deg = 1.0;  // both set: the registration refined
+  c.registration_sigma_mm = 2.0;
+  CHECK(t.configure(c, seq.mesh, cam, seq.T_camera_model[0]).ok());
   Pinhole bad = seq.K;
   bad.fx = -1;
   CHECK_FALSE(t.configure(good, seq.mesh, CameraModel(bad, Distortion{}), seq.T_camera_model[0]).ok());
