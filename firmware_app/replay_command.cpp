@@ -64,6 +64,12 @@ bool parse_args(Args args, ReplayArgs* a) {
     std::fprintf(stderr, "scopetrack: %s takes %s\n", args[static_cast<std::size_t>(*i - 1)], wants);
     return false;
   };
+  // The same for a number in [lo, hi].
+  const auto double_value = [&](int* i, double lo, double hi, const char* wants, double* out) {
+    if (st::parse_double_in(args[static_cast<std::size_t>(++*i)], lo, hi, out)) return true;
+    std::fprintf(stderr, "scopetrack: %s takes %s\n", args[static_cast<std::size_t>(*i - 1)], wants);
+    return false;
+  };
   for (int i = 1; i < argc; ++i) {
     const char* arg = args[static_cast<std::size_t>(i)];
     const bool has_value = i + 1 < argc;
@@ -109,19 +115,11 @@ bool parse_args(Args args, ReplayArgs* a) {
         return false;
       }
     } else if (!std::strcmp(arg, "--registration-sigma-deg") && has_value) {
-      if (!st::parse_double_in(args[static_cast<std::size_t>(++i)], 0.001, 90.0,
-                               &a->registration_sigma_deg)) {
-        std::fprintf(stderr,
-                     "scopetrack: --registration-sigma-deg takes an angle in 0.001..90 degrees\n");
+      if (!double_value(&i, 0.001, 90.0, "an angle in 0.001..90 degrees", &a->registration_sigma_deg))
         return false;
-      }
     } else if (!std::strcmp(arg, "--registration-sigma-mm") && has_value) {
-      if (!st::parse_double_in(args[static_cast<std::size_t>(++i)], 0.001, 1000.0,
-                               &a->registration_sigma_mm)) {
-        std::fprintf(stderr,
-                     "scopetrack: --registration-sigma-mm takes a distance in 0.001..1000 mm\n");
+      if (!double_value(&i, 0.001, 1000.0, "a distance in 0.001..1000 mm", &a->registration_sigma_mm))
         return false;
-      }
     } else if (!std::strcmp(arg, "--registration-keyframes") && has_value) {
       long long n = 0;
       if (!int_value(&i, 0, 1000, "a keyframe count in 0..1000 (0: no periodic global BA)", &n))
