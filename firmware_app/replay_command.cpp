@@ -67,7 +67,8 @@ bool parse_args(Args args, ReplayArgs* a) {
   // The same for a number in [lo, hi].
   const auto double_value = [&](int* i, double lo, double hi, const char* wants, double* out) {
     if (st::parse_double_in(args[static_cast<std::size_t>(++*i)], lo, hi, out)) return true;
-    std::fprintf(stderr, "scopetrack: %s takes %s\n", args[static_cast<std::size_t>(*i - 1)], wants);
+    std::fprintf(stderr, "scopetrack: %s takes %s\n", args[static_cast<std::size_t>(*i - 1)],
+                 wants);
     return false;
   };
   for (int i = 1; i < argc; ++i) {
@@ -115,10 +116,12 @@ bool parse_args(Args args, ReplayArgs* a) {
         return false;
       }
     } else if (!std::strcmp(arg, "--registration-sigma-deg") && has_value) {
-      if (!double_value(&i, 0.001, 90.0, "an angle in 0.001..90 degrees", &a->registration_sigma_deg))
+      if (!double_value(&i, 0.001, 90.0, "an angle in 0.001..90 degrees",
+                        &a->registration_sigma_deg))
         return false;
     } else if (!std::strcmp(arg, "--registration-sigma-mm") && has_value) {
-      if (!double_value(&i, 0.001, 1000.0, "a distance in 0.001..1000 mm", &a->registration_sigma_mm))
+      if (!double_value(&i, 0.001, 1000.0, "a distance in 0.001..1000 mm",
+                        &a->registration_sigma_mm))
         return false;
     } else if (!std::strcmp(arg, "--registration-keyframes") && has_value) {
       long long n = 0;
