@@ -1,5 +1,5 @@
 // scopetrack --sequence DIR --out DIR [--realtime] [--no-mask] [--no-occluder-mask]
-// [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
+//   [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
 //   [--fast-reference-luma L] [--fast-reference-contrast C] [--no-descriptor-refresh] [--w-shape W]
 //   [--max-raster-triangles N] [--registration-sigma-deg D --registration-sigma-mm M]
 //   [--registration-keyframes N] [--ring N]:
@@ -89,10 +89,8 @@ bool parse_args(Args args, ReplayArgs* a) {
     } else if (!std::strcmp(arg, "--no-shape-ba")) {
       a->shape_ba = false;
     } else if (!std::strcmp(arg, "--w-shape") && has_value) {
-      if (!st::parse_double_in(args[static_cast<std::size_t>(++i)], 0.0, 1e6, &a->w_shape)) {
-        std::fprintf(stderr, "scopetrack: --w-shape takes a weight in 0..1e6 (0: no shape residual)\n");
+      if (!double_value(&i, 0.0, 1e6, "a weight in 0..1e6 (0: no shape residual)", &a->w_shape))
         return false;
-      }
     } else if (!std::strcmp(arg, "--max-raster-triangles") && has_value) {
       const char* wants = "0 (never simplify) or a triangle count in 1000..4000000";
       long long n = 0;
@@ -111,10 +109,9 @@ bool parse_args(Args args, ReplayArgs* a) {
       if (!int_value(&i, 0, 255, "a luma in 0..255 (0: off)", &luma)) return false;
       a->fast_reference_luma = static_cast<double>(luma);
     } else if (!std::strcmp(arg, "--fast-reference-contrast") && has_value) {
-      if (!st::parse_double_in(args[static_cast<std::size_t>(++i)], 0.0, 255.0, &a->fast_reference_contrast)) {
-        std::fprintf(stderr, "scopetrack: --fast-reference-contrast takes a contrast in 0..255 (0: off)\n");
+      if (!double_value(&i, 0.0, 255.0, "a contrast in 0..255 (0: off)",
+                        &a->fast_reference_contrast))
         return false;
-      }
     } else if (!std::strcmp(arg, "--registration-sigma-deg") && has_value) {
       if (!double_value(&i, 0.001, 90.0, "an angle in 0.001..90 degrees",
                         &a->registration_sigma_deg))
