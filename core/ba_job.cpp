@@ -37,10 +37,14 @@ void BaJob::clear() {
   summary = BaSummary{};
 }
 
+bool pose_prior_sigmas_usable(double sigma_rad, double sigma_mm) {
+  return sigma_rad > 0 && std::isfinite(sigma_rad) && sigma_mm > 0 && std::isfinite(sigma_mm);
+}
+
 bool BaJob::set_prior(int keyframe_index, const SE3& T_camera_model, double sigma_rad,
                       double sigma_mm) {
   if (keyframe_index < 0 || keyframe_index >= keyframe_count || !T_camera_model.all_finite() ||
-      !(sigma_rad > 0) || !std::isfinite(sigma_rad) || !(sigma_mm > 0) || !std::isfinite(sigma_mm))
+      !pose_prior_sigmas_usable(sigma_rad, sigma_mm))
     return false;
   prior.keyframe = keyframe_index;
   pose_to_params(T_camera_model, prior.pose);

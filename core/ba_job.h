@@ -59,6 +59,8 @@ struct BaPosePrior {
   double pose[kPoseParams] = {0, 0, 0, 1, 0, 0, 0};
   double sigma_rad = 0, sigma_mm = 0;
 };
+// Both sigmas finite and > 0 (BaJob::set_prior and BundleAdjuster's job check).
+bool pose_prior_sigmas_usable(double sigma_rad, double sigma_mm);
 
 struct BaSummary {
   bool usable = false;         // solved, finite: the tracker may apply it
@@ -70,10 +72,9 @@ struct BaSummary {
   double initial_cost = 0, final_cost = 0;
   double solver_ms = 0;        // Ceres' own measure of the solve
   int points_rejected = 0;     // moved farther than the options allow: not applied
-  bool prior_tested =
-      false;  // the job's pose prior was tested (BundleAdjusterOptions::prior_release_f)
-  bool prior_used = false;  // ... and the freed solution kept (the prior's keyframe moved)
-  double prior_f = 0;       // the test's F statistic
+  bool prior_tested = false;   // the job's prior was tested (see BundleAdjusterOptions)
+  bool prior_used = false;     // ... and the freed solution kept (the prior's keyframe moved)
+  double prior_f = 0;          // the test's F statistic
   double mean_surface_distance_mm = -1;  // of the points after the solve (when a mesh was given)
 };
 

@@ -276,10 +276,7 @@ bool BundleAdjuster::valid(const BaJob& job) const {
   const BaPosePrior& prior = job.prior;
   if (prior.keyframe >= job.keyframe_count || !pose_from_params(prior.pose).all_finite())
     return false;
-  if (prior.keyframe >= 0 && (!(prior.sigma_rad > 0) || !std::isfinite(prior.sigma_rad) ||
-                              !(prior.sigma_mm > 0) || !std::isfinite(prior.sigma_mm)))
-    return false;
-  return true;
+  return prior.keyframe < 0 || pose_prior_sigmas_usable(prior.sigma_rad, prior.sigma_mm);
 }
 
 // Adds every block and residual to impl_->problem; returns the number of
@@ -318,7 +315,6 @@ int BundleAdjuster::build(BaJob* job, bool free_prior) {
     impl_->prior_cost.set(job->pose(prior_kf), pose_from_params(job->prior.pose),
                           job->prior.sigma_rad, job->prior.sigma_mm);
     problem.AddResidualBlock(&impl_->prior_cost, nullptr, pose_delta_block(prior_kf));
-    job->summary.prior_used = true;
   }
   job->summary.fixed_keyframes = fixed;
   if (options_.max_observations_per_point > 0)

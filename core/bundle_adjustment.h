@@ -10,9 +10,10 @@
 // freedom left when w_shape = 0): a held pose is no parameter block, its
 // residuals take the point alone. A job may put a prior on one keyframe's
 // pose (the tracker: the registration of frame 0); that keyframe is then
-// freed only where the data says the prior is off (prior_release_f). Single-threaded, dense Schur
-// complement (a window has few poses and many points), bounded iterations and solver time, and a
-// stop once the gradient has fallen to a fraction of its start.
+// freed only where the data says the prior is off (prior_release_f).
+// Single-threaded, dense Schur complement (a window has few poses and many
+// points), bounded iterations and solver time, and a stop once the gradient
+// has fallen to a fraction of its start.
 //
 // Memory: the cost-function objects are pooled (sized in configure()) and
 // not owned by the Problem; Ceres itself allocates its Problem, Program and
@@ -135,8 +136,9 @@ class BundleAdjuster {
   std::vector<std::uint8_t> held_;            // per job keyframe: pose held constant (fixed or gauge), not a block
   std::vector<std::int32_t> newest_frames_;   // per job point: max_observations_per_point newest frames, descending
   std::vector<std::int32_t> newest_fixed_frames_;  // the same over fixed keyframes, max_fixed_observations_per_point
-  std::vector<double> saved_poses_,
-      saved_points_;                          // the held solution while the freed one is tested
+  // The held solution while the freed one is tested (kPoseParams per keyframe, 3 per point).
+  std::vector<double> saved_poses_;
+  std::vector<double> saved_points_;
   std::vector<ShapePlane> planes_;            // per job point: tangent plane at the start value
   // Per map point slot (BaPoint::id < max_points): the plane, where it was
   // taken and the point's stamp; sized in configure().
