@@ -10,8 +10,9 @@
 // (grown or shrunk by organ_margin_px) and the valid mask (centre and all 16 FAST
 // circle pixels) -> FAST at the relaxed threshold only in threshold cells
 // without a strict corner (ORB-SLAM2's rule), as a cascade (halfway
-// threshold, then relaxed) that scans only spreading cells where a weaker
-// corner could still be kept (exact: same selection as scanning everywhere)
+// threshold, then relaxed) over the spreading cells where a weaker corner
+// could still be kept, all its steps served by one FAST scan at the
+// relaxed threshold
 // -> spread to twice the level's target count
 // with a grid (best FAST score per cell first, then second best, ...) ->
 // Harris response (7x7) of those -> spread again by Harris response to the
@@ -117,7 +118,7 @@ class OrbExtractor {
   int spread_cell_px(int level, int target) const;
   bool close_spread_cells(int level, int n, int target);
   void build_relaxed_chunk_map(int level);
-  int filter_relaxed(int level, int n_fast, int n, int max_score);
+  int filter_relaxed(int level, int n_fast, int n, int min_score, int max_score);
   int spread(int level, int n, int target);
   void harris_keys(int level, int n);
   void smooth_patches(int level, int n);
