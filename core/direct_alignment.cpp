@@ -416,8 +416,9 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
   return true;
 }
 
-bool DirectAligner::align(GrayView image, GrayView valid, const MeshRasterizer& raster, const CameraModel& camera,
-                          SE3* T_camera_model, DirectAlignSummary* summary) {
+bool DirectAligner::align(GrayView image, GrayView valid, const MeshRasterizer& raster,
+                          const CameraModel& camera, SE3* T_camera_model,
+                          DirectAlignSummary* summary, bool allow_coarser) {
   DirectAlignSummary s;
   if (summary) *summary = s;
   Level& l0 = levels_[0];
@@ -439,20 +440,32 @@ bool DirectAligner::align(GrayView image, GrayView valid, const MeshRasterizer& 
   SE3 T = *T_camera_model;
   double a = 1.0, b = 0.0;
   bool ok = true;
+  // The estimate of the finest level so far that passed the checks: most
+  // of the organ seen in the reference still in view, and a contrast gain
+  // in range (a contrast that collapsed, or blew up, explains any image:
+  // the points then sit on flat tissue or off the organ, not on their
+  // texture). Without allow_coarser only the finest level's counts.
+  bool have_passed = false;
+  SE3 T_passed;
+  DirectAlignSummary s_passed;
   for (int li = levels_used_ - 1; li >= 0 && ok; --li) {
     Level& l = levels_[li];
     gradients(&l);
     s.points = select_points(l, raster, camera);
     ok = s.points >= kMinPoints && solve_level(l, s.points, camera, &T, &a, &b, &s);
+    s.gain = a;
+    s.level = li;
+    const bool passed = ok && s.used >= kMinPoints && 2 * s.used >= s.points && T.all_finite() &&
+                        a >= kMinGain && a <= kMaxGain;
+    if (passed && (li == 0 || allow_coarser)) {
+      have_passed = true;
+      T_passed = T;
+      s_passed = s;
+    }
   }
-  s.gain = a;
-  if (summary) *summary = s;
-  // Most of the organ seen in the reference must still be in view.
-  if (!ok || s.used < kMinPoints || 2 * s.used < s.points || !T.all_finite()) return false;
-  // A contrast that collapsed (or blew up) explains any image: the points
-  // then sit on flat tissue or off the organ, not on their texture.
-  if (!(a >= kMinGain && a <= kMaxGain)) return false;
-  *T_camera_model = T;
+  if (summary) *summary = have_passed ? s_passed : s;
+  if (!have_passed) return false;
+  *T_camera_model = T_passed;
   return true;
 }
 

@@ -57,6 +57,7 @@ struct DirectAlignSummary {
   // starts (a wrong basin leaves larger residuals).
   double residual_median = 0;
   double gain = 1;  // the estimate's contrast change (current ~ gain * reference + offset)
+  int level = 0;    // the level whose estimate was returned (0: the finest)
 };
 
 class DirectAligner {
@@ -99,8 +100,15 @@ class DirectAligner {
   // projecting). *T_camera_model: in, the guess; out, the estimate (only
   // when true is returned: enough points stayed in view and converged,
   // and the contrast gain stayed within [kMinGain, kMaxGain]).
-  bool align(GrayView image, GrayView valid, const MeshRasterizer& raster, const CameraModel& camera,
-             SE3* T_camera_model, DirectAlignSummary* summary = nullptr);
+  // allow_coarser: if the finest level's estimate fails those checks, the
+  // last coarser level's that passed them is returned instead (summary's
+  // level says which). Motion blur takes the fine levels' texture first:
+  // on a fast swing over photo-textured tissue the most blurred frame's
+  // finest-level gain fell to 0.06-0.09 against the previous frame while
+  // the next coarser level's stayed in range.
+  bool align(GrayView image, GrayView valid, const MeshRasterizer& raster,
+             const CameraModel& camera, SE3* T_camera_model, DirectAlignSummary* summary = nullptr,
+             bool allow_coarser = false);
 
  private:
   struct Level {

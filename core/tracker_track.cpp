@@ -299,10 +299,11 @@ void TrackerImpl::reproject_local_map(const SE3& T_camera_model) {
 // Dead reckoning while lost: the camera's motion since the reference frame
 // (the last tracked frame, then each dead-reckoned one) from an ORB pyramid
 // level of both and the mesh rendered at the reference pose (DirectAligner).
-// *T: in, the prediction; out, the estimate if the alignment held. The
-// current frame then becomes the next reference, at the estimate; if it
-// failed (the organ left the view, say) the chain ends and the caller's
-// prediction carries on. Renders at the reference pose.
+// *T: in, the prediction; out, the estimate if the alignment held (at a
+// coarser level if the finest one's failed: DirectAligner::align's
+// allow_coarser). The current frame then becomes the next reference, at
+// the estimate; if it failed (the organ left the view, say) the chain ends
+// and the caller's prediction carries on. Renders at the reference pose.
 //
 // T_alternative: the same prediction without the whole-image motion
 // (constant velocity). Where the two differ by more than
@@ -321,12 +322,14 @@ bool TrackerImpl::dead_reckon(SE3* T_camera_model, const SE3& T_alternative) {
   render_at(aligner_.reference_pose());
   SE3 T = *T_camera_model;
   DirectAlignSummary fit;
-  bool ok = aligner_.align(image, valid_view_, raster_, camera_, &T, &fit);
+  bool ok = aligner_.align(image, valid_view_, raster_, camera_, &T, &fit, true);
   if (image_shift_px(*T_camera_model, T_alternative) > kAlternativeStartPx) {
     SE3 T_alt = T_alternative;
     DirectAlignSummary fit_alt;
-    if (aligner_.align(image, valid_view_, raster_, camera_, &T_alt, &fit_alt) &&
-        (!ok || fit_alt.residual_median < fit.residual_median)) {
+    // Residuals compare within a level; an estimate from a finer level wins.
+    if (aligner_.align(image, valid_view_, raster_, camera_, &T_alt, &fit_alt, true) &&
+        (!ok || fit_alt.level < fit.level ||
+         (fit_alt.level == fit.level && fit_alt.residual_median < fit.residual_median))) {
       T = T_alt;
       ok = true;
     }
