@@ -47,14 +47,15 @@
 namespace st {
 
 struct DirectAlignSummary {
-  int points = 0;        // reference points with depth at the finest level
+  int points = 0;        // reference points with depth at the returned level
   int used = 0;          // of those, inside the current image at the end
   int iterations = 0;    // over all levels
-  // Median |residual| of the points in view at the estimate, on the finest
-  // level (intensity / the reference's mean, after the local mean is taken
-  // out): how well the estimate explains the image. Comparable between
-  // alignments of the same image to the same reference from different
-  // starts (a wrong basin leaves larger residuals).
+  // Median |residual| of the points in view at the estimate, on the
+  // returned level (intensity / the reference's mean, after the local mean
+  // is taken out): how well the estimate explains the image. Comparable
+  // between alignments of the same image to the same reference from
+  // different starts at the same level (a wrong basin leaves larger
+  // residuals).
   double residual_median = 0;
   double gain = 1;  // the estimate's contrast change (current ~ gain * reference + offset)
   int level = 0;    // the level whose estimate was returned (0: the finest)

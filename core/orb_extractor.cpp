@@ -657,20 +657,21 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
     // Scanning each step separately scored ~24,000 chunk rows a frame on
     // orbit 1280x720 (13,000 at threshold 13, then 11,000 at 7); this
     // scores the 13,000 once.
-    int n_relaxed = -1;
+    int n_relaxed = 0;
+    bool scanned = false;
     int prev_threshold = strict_threshold_;
     for (const int t : relaxed_cascade_) {
       if (t >= prev_threshold) continue;
       if (!close_spread_cells(k, n_kept, 2 * level_target_[k])) break;
-      if (n_relaxed < 0) {
+      if (!scanned) {
         build_relaxed_chunk_map(k);
         n_relaxed = fast_.detect(img, relaxed_threshold_, config_.edge_border_px,
                                  chunk_relaxed_.data(), chunks, fast_out_.data(), capacity);
+        scanned = true;
       }
       n_kept = filter_relaxed(k, n_relaxed, n_kept, t, prev_threshold);
       prev_threshold = t;
     }
-    n_relaxed = std::max(n_relaxed, 0);
     stats_.fast_corners += n_strict + n_relaxed;
     stats_.masked_corners += n_kept;
     stats_.kept_corners += n_kept;

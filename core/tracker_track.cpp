@@ -308,7 +308,8 @@ void TrackerImpl::reproject_local_map(const SE3& T_camera_model) {
 // T_alternative: the same prediction without the whole-image motion
 // (constant velocity). Where the two differ by more than
 // kAlternativeStartPx, the alignment also starts from it and the estimate
-// that explains the image better (smaller median residual) is kept. In a
+// from the finer level, then the one that explains the image better
+// (smaller median residual), is kept. In a
 // fast swing the image-motion prior can be the worse start (a swing along
 // the organ, with parallax between it and the background): on the
 // simulated stomach (fast seed 2, 640x360) it put the prediction 28 px off

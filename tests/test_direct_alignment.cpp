@@ -7,8 +7,9 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
-#include <opencv2/imgproc.hpp>
 #include <vector>
+
+#include <opencv2/imgproc.hpp>
 
 #include "core/direct_alignment.h"
 #include "core/image_pyramid.h"
@@ -283,7 +284,8 @@ TEST_CASE("direct alignment: the field stop's static edge and lens distortion (i
 // there (the run stayed lost for its last 92 frames). The next coarser
 // level's estimate passes. Chained over the swing from the truth, as the
 // tracker does while lost: without allow_coarser the chain breaks; with it
-// every frame is measured and the chain ends close to the truth.
+// every frame is measured and the chain ends nearer the truth at the last
+// frame than the broken chain's last estimate (55.6 against 100.6 px).
 TEST_CASE(
     "direct alignment: in the swing's most blurred frame a coarser level stands in for the finest" *
     doctest::timeout(240)) {
