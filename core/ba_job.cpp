@@ -34,6 +34,7 @@ Status BaJob::configure(int max_keyframes, int max_points, int max_observations)
 void BaJob::clear() {
   keyframe_count = point_count = observation_count = 0;
   prior = BaPosePrior{};
+  test_focal = false;
   summary = BaSummary{};
 }
 

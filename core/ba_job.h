@@ -75,6 +75,9 @@ struct BaSummary {
   bool prior_tested = false;   // the job's prior was tested (see BundleAdjusterOptions)
   bool prior_used = false;     // ... and the freed solution kept (the prior's keyframe moved)
   double prior_f = 0;          // the test's F statistic
+  bool focal_tested = false;   // the job's focal test ran (BaJob::test_focal)
+  double focal_scale = 1;      // the focal lengths' scale the data fits best (1: the calibration's)
+  double focal_f = 0;          // F of that fit against the calibration's focal lengths (1 dof)
   double mean_surface_distance_mm = -1;  // of the points after the solve (when a mesh was given)
 };
 
@@ -86,6 +89,9 @@ struct BaJob {
   std::vector<BaObservation> observations;
   int keyframe_count = 0, point_count = 0, observation_count = 0;
   BaPosePrior prior;  // cleared by clear()
+  // Also test the calibration's focal length (BundleAdjuster::solve);
+  // cleared by clear().
+  bool test_focal = false;
   BaSummary summary;
 
   // Sizes the arrays (allocates). Each maximum >= 1.

@@ -74,6 +74,14 @@ struct BundleAdjusterOptions {
   // registration was right; a coarse registration stands out by far
   // (tests: F ~ 300 at 1 deg / 4 mm, ~ 1.7 when exact). 0: always free.
   double prior_release_f = 6.3;
+  // A job asking for it (BaJob::test_focal) is solved twice more from its
+  // solution, every keyframe free (the mesh fixing the gauge), with the
+  // focal lengths held and with one more parameter, a common scale s of
+  // them (principal point kept), and the solution restored after: the
+  // summary then tells how much better the data fits another focal length
+  // (BaSummary::focal_scale, focal_f; only with the shape residual on, which
+  // ties the structure to the metric mesh: without it a focal change is
+  // absorbed by depth). Costs two more solves.
   int surface_distance_samples = 128;  // summary.mean_surface_distance_mm over at most this
                                        // many evenly spaced points (0: all); one exact
                                        // closest-point query each (~1.6 us)
@@ -114,11 +122,13 @@ class BundleAdjuster {
   struct SolveStats {
     int residuals = 0, parameters = 0;  // Ceres' scalar residuals and effective parameters
   };
+  bool solve_tested_prior(BaJob* job, int max_iterations, double max_time_s);
+  void test_focal(BaJob* job, int max_iterations, double max_time_s);
   bool solve_once(BaJob* job, bool free_prior, int max_iterations, double max_time_s,
-                  SolveStats* stats);
+                  SolveStats* stats, bool free_focal = false);
   void save_solution(const BaJob& job);
   void restore_solution(BaJob* job) const;
-  int build(BaJob* job, bool free_prior);
+  int build(BaJob* job, bool free_prior, bool free_focal);
   void newest_frames_per_point(const BaJob& job, int cap, bool fixed_only, std::vector<std::int32_t>* rows) const;
   bool keep_observation(const BaJob& job, const BaObservation& o) const;
   bool usable_observation(const BaJob& job, const BaObservation& o) const;
@@ -152,6 +162,7 @@ class BundleAdjuster {
   bool plane_for(const BaPoint& p, ShapePlane* plane, int* queries);
   int max_points_ = 0, max_observations_ = 0;
   bool configured_ = false;
+  bool focal_test_ = false;  // during test_focal's solves: no keyframe held, no prior
 };
 
 }  // namespace st

@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "core/bundle_adjustment.h"
+#include "core/tracker.h"
 #include "support/alloc_guard.h"
 #include "support/ba_window.h"
 #include "support/track_scene.h"
@@ -474,4 +475,62 @@ TEST_CASE("ba window: pose priors that cannot be used are refused") {
   w.job = good;
   w.job.clear();
   CHECK(w.job.prior.keyframe == -1);  // clear() drops the prior
+}
+
+// The calibration's focal test (BaJob::test_focal): the window's
+// observations are made through K; adjusted through focal lengths 10 %
+// too long, the data asks for s ~ 1 / 1.1 with an F far beyond chance, and
+// through K itself for s ~ 1 with an F of chance. Either way the job's
+// solution is the plain solve's: the test's own solves are undone. A
+// coarse registration (the whole map 2 deg / 4 mm off the mesh) is not
+// taken for a focal error: the test's solves hold no keyframe, so the
+// poses take the misplacement up (with the oldest keyframe held, a 2 deg /
+// 4 mm registration on a simulated orbit read as s 0.943 at F 195).
+TEST_CASE("ba window: the focal test finds focal lengths 10 % off and leaves the solution as it was") {
+  const Mesh mesh = load_liver_for_tracking();
+  const Pinhole K = track_test_pinhole();
+  Pinhole K_long = K;
+  K_long.fx *= 1.1;
+  K_long.fy *= 1.1;
+  for (const bool wrong : {false, true}) {
+    const Pinhole& K_ba = wrong ? K_long : K;
+    BaWindow tested = window_of(mesh, K, 600), plain = window_of(mesh, K, 600);
+    REQUIRE(tested.job.point_count > 400);
+    tested.job.test_focal = true;
+    BundleAdjuster ba, ba_plain;
+    REQUIRE(configure_for(ba, options(100.0), mesh, K_ba, tested.job));
+    REQUIRE(configure_for(ba_plain, options(100.0), mesh, K_ba, plain.job));
+    REQUIRE(ba.solve(&tested.job));
+    REQUIRE(ba_plain.solve(&plain.job));
+    const BaSummary& s = tested.job.summary;
+    MESSAGE(std::string(wrong ? "fx, fy 10 % long" : "right focal lengths")
+            << ": s " << s.focal_scale << ", F " << s.focal_f << " over " << s.observations << " observations");
+    CHECK(s.focal_tested);
+    CHECK_FALSE(plain.job.summary.focal_tested);
+    if (wrong) {
+      CHECK(std::abs(s.focal_scale - 1.0 / 1.1) < 0.02);
+      CHECK(s.focal_f > 100.0);
+    } else {
+      CHECK(std::abs(s.focal_scale - 1.0) < 0.01);
+      CHECK(s.focal_f < 30.0);  // F(1, dof): P(F > 30) ~ 1e-7
+    }
+    CHECK(s.final_cost == plain.job.summary.final_cost);
+    for (int k = 0; k < tested.job.keyframe_count; ++k)
+      for (int c = 0; c < kPoseParams; ++c)
+        CHECK(tested.job.keyframes[static_cast<std::size_t>(k)].pose[c] ==
+              plain.job.keyframes[static_cast<std::size_t>(k)].pose[c]);
+    for (int i = 0; i < tested.job.point_count; ++i)
+      CHECK((tested.job.point(i) - plain.job.point(i)).norm() == 0.0);
+  }
+  const SE3 G(so3_exp(2.0 * M_PI / 180.0 * Vec3(1, 1, 1).normalized()), 4.0 * Vec3(1, 1, 1).normalized());
+  BaWindow coarse = registration_window(mesh, K, G);
+  coarse.job.test_focal = true;
+  BundleAdjuster ba;
+  REQUIRE(configure_for(ba, options(100.0), mesh, K, coarse.job));
+  REQUIRE(ba.solve(&coarse.job));
+  MESSAGE("registration 2 deg / 4 mm off, right focal lengths: s " << coarse.job.summary.focal_scale << ", F "
+                                                                    << coarse.job.summary.focal_f);
+  CHECK(coarse.job.summary.focal_tested);
+  CHECK(std::abs(coarse.job.summary.focal_scale - 1.0) < TrackerConfig{}.calibration_warn_scale_error);
+  CHECK(coarse.job.summary.focal_f < 30.0);  // measured: s 1.017, F 12.5
 }
