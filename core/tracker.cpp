@@ -103,6 +103,10 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
       c.min_spread_cells < 0 || c.min_spread_cells > 16 || !(c.dead_reckoning_decay > 0.0) ||
       !(c.dead_reckoning_decay <= 1.0))
     return err("relocalisation settings out of range");
+  if (c.calibration_test_jobs < 0 || !(c.calibration_min_f > 0) || !std::isfinite(c.calibration_min_f) ||
+      !(c.calibration_warn_scale_error > 0) || !(c.calibration_refuse_scale_error >= c.calibration_warn_scale_error) ||
+      !(c.calibration_refuse_scale_error < 1) || c.calibration_votes < 1)
+    return err("calibration test settings out of range");
   return Status::Ok();
 }
 
@@ -226,6 +230,8 @@ void TrackerImpl::start() {
   ba_window_pending_ = ba_global_pending_ = false;
   init_keyframe_ = init_keyframe_frame_ = -1;
   keyframes_since_global_ = 0;
+  calibration_jobs_ = 0;
+  calibration_ = CalibrationCheck{};
   ba_min_version_ = ba_version_ + 1;  // a job still out refers to the map just cleared
 }
 
@@ -238,6 +244,17 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
     return r;  // defined degraded state: lost, no pose
   }
   const bool ba_applied = apply_ba();  // safe point: nothing of this frame uses the map yet
+  if (calibration_.suspect && calibration_.suspect_frame < 0) calibration_.suspect_frame = frame_index;
+  if (calibration_.refused) {
+    // Defined degraded state: every pose would carry the calibration's error.
+    if (calibration_.refused_frame < 0) calibration_.refused_frame = frame_index;
+    r.calibration_refused = true;
+    r.ba_applied = ba_applied;
+    r.map_points = map_.point_count();
+    r.keyframes = map_.keyframe_count();
+    if (config_.now_ns) r.times_ms[static_cast<int>(Stage::kTotal)] = now_ms() - t0;
+    return r;
+  }
   valid_view_ = valid_scene_ = valid_mask_.build(luma);
   const double t_valid = now_ms();
   bool occluder_refused = false;
@@ -359,6 +376,7 @@ void Tracker::stop() {
 }
 
 int Tracker::raster_triangles() const { return impl_ ? impl_->raster_triangles() : 0; }
+CalibrationCheck Tracker::calibration_check() const { return impl_ ? impl_->calibration_check() : CalibrationCheck{}; }
 
 int Tracker::map_points(Vec3* p_model, int capacity) const {
   if (!impl_) return 0;

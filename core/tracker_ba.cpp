@@ -8,6 +8,7 @@
 // Tracking thread; allocates nothing (the job buffers belong to the
 // channel, the index arrays are sized in configure()).
 #include <algorithm>
+#include <cmath>
 
 #include "core/capacity.h"
 #include "core/tracker_impl.h"
@@ -19,6 +20,7 @@ bool TrackerImpl::apply_ba() {
   const BaJob* job = ba_channel_->solved_job();
   if (!job) return false;
   const bool usable = job->summary.usable && job->version >= ba_min_version_;
+  if (usable && job->summary.focal_tested) judge_calibration(job->summary);
   if (usable) {
     for (int i = 0; i < job->keyframe_count; ++i) {
       const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
@@ -35,6 +37,25 @@ bool TrackerImpl::apply_ba() {
   }
   ba_channel_->release_job(job);
   return usable;
+}
+
+// One focal test's votes (TrackerConfig::check_calibration): a
+// significant fit (F) to focal lengths clearly off (|s - 1|, two levels),
+// on the same side as the votes before it; anything else resets a count.
+void TrackerImpl::judge_calibration(const BaSummary& s) {
+  CalibrationCheck& c = calibration_;
+  ++c.tests;
+  c.max_f = std::max(c.max_f, s.focal_f);
+  const bool same_side = (s.focal_scale > 1.0) == (c.focal_scale > 1.0);
+  const double error = std::abs(s.focal_scale - 1.0);
+  const bool significant = s.focal_f > config_.calibration_min_f;
+  const auto vote = [&](bool against, int votes) { return against ? (votes > 0 && same_side ? votes + 1 : 1) : 0; };
+  c.warn_votes = vote(significant && error > config_.calibration_warn_scale_error, c.warn_votes);
+  c.refuse_votes = vote(significant && error > config_.calibration_refuse_scale_error, c.refuse_votes);
+  c.focal_scale = s.focal_scale;
+  c.focal_f = s.focal_f;
+  if (c.warn_votes >= config_.calibration_votes) c.suspect = true;
+  if (c.refuse_votes >= config_.calibration_votes) c.suspect = c.refused = true;
 }
 
 bool TrackerImpl::registration_free() const {
@@ -100,6 +121,12 @@ void TrackerImpl::fill_job(BaJob* job, bool global) {
   job->clear();
   job->kind = global ? BaKind::kGlobal : BaKind::kWindow;
   job->version = ++ba_version_;
+  // The first window jobs also test the calibration's focal length.
+  if (!global && config_.check_calibration && config_.w_shape > 0 &&
+      calibration_jobs_ < config_.calibration_test_jobs) {
+    job->test_focal = true;
+    ++calibration_jobs_;
+  }
   int n = 0;
   for (int k = 0; k < map_.keyframe_capacity(); ++k)
     if (map_.keyframe(k).alive) ba_order_[static_cast<std::size_t>(n++)] = k;

@@ -58,6 +58,7 @@ class TrackerImpl {
   TrackResult step(GrayView luma, int frame_index, ChromaView chroma);
   const TrackingMap& map() const { return map_; }
   int raster_triangles() const { return raster_.triangle_count(); }
+  const CalibrationCheck& calibration_check() const { return calibration_; }
   void set_ba_channel(BaChannel* channel) { ba_channel_ = channel; }
 
  private:
@@ -177,6 +178,10 @@ class TrackerImpl {
   bool registration_free() const;     // the prior applies: sigmas > 0 and frame 0's keyframe alive
   std::uint32_t ba_version_ = 0;      // of the last job handed out (never reset)
   std::uint32_t ba_min_version_ = 0;  // jobs below this came from before start(): not applied
+  // The calibration's focal test (TrackerConfig::check_calibration).
+  int calibration_jobs_ = 0;        // window jobs handed out with the test
+  CalibrationCheck calibration_;
+  void judge_calibration(const BaSummary& s);
   std::vector<std::int32_t> ba_point_index_;     // per map point slot: its index in the job being filled
   std::vector<std::int32_t> ba_keyframe_index_;  // per keyframe slot: likewise
   std::vector<std::int32_t> ba_order_;           // keyframe slots, newest first

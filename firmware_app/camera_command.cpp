@@ -43,6 +43,7 @@ struct CameraArgs {
   int ring_slots = 4;
   bool use_mask = true;
   bool use_occluder_mask = true;
+  bool check_calibration = true;
 };
 
 bool parse_args(Args args, CameraArgs* a) {
@@ -57,6 +58,7 @@ bool parse_args(Args args, CameraArgs* a) {
     else if (!std::strcmp(arg, "--ring") && has_value) a->ring_slots = std::atoi(args[static_cast<std::size_t>(++i)]);
     else if (!std::strcmp(arg, "--no-mask")) a->use_mask = false;
     else if (!std::strcmp(arg, "--no-occluder-mask")) a->use_occluder_mask = false;
+    else if (!std::strcmp(arg, "--no-calibration-check")) a->check_calibration = false;
     else {
       std::fprintf(stderr, "scopetrack: unknown or incomplete argument '%s'\n", arg);
       return false;
@@ -189,6 +191,10 @@ int finish_run(const CameraArgs& args, const SequenceConfig& cal, std::int64_t t
       std::fprintf(stderr, "scopetrack: %s\n", s.message().c_str());
   }
   if (!stats.error.empty()) std::fprintf(stderr, "scopetrack: capture ended: %s\n", stats.error.c_str());
+  if (const CalibrationCheck c = processor.calibration_check(); c.suspect) {
+    std::fprintf(stderr, "scopetrack: %s\n", describe_calibration(c, args.calibration).c_str());
+    if (c.refused && stats.error.empty()) return 3;
+  }
   return stats.error.empty() ? 0 : 1;
 }
 
@@ -215,7 +221,7 @@ int run_list_cameras(Args args) {
 int run_camera(Args argv) {
   CameraArgs args;
   if (!parse_args(argv, &args)) {
-    std::fprintf(stderr, "usage: scopetrack --camera ID --mesh FILE --calibration FILE [--out DIR] [--ring N] [--no-mask]\n");
+    std::fprintf(stderr, "usage: scopetrack --camera ID --mesh FILE --calibration FILE [--out DIR] [--ring N] [--no-mask] [--no-occluder-mask] [--no-calibration-check]\n");
     return 2;
   }
   // Before any thread exists, so every thread inherits the blocked mask and
@@ -235,6 +241,7 @@ int run_camera(Args argv) {
   tc.height = cal.height;
   tc.use_mask = args.use_mask;
   tc.use_occluder_mask = args.use_occluder_mask;
+  tc.check_calibration = args.check_calibration;
   tc.now_ns = &platform::monotonic_ns;
   auto processor = std::make_unique<TrackerProcessor>();
   if (Status s = processor->configure(tc, mesh, CameraModel(cal.K, cal.distortion), cal.T_camera_model_init); !s) {

@@ -20,10 +20,10 @@ int run_help(st::app::Args);
 constexpr std::array kCommands = {
     st::app::Command{"--check", "DIR", "validate a sequence folder and say whether it is usable",
                      st::app::run_check},
-    st::app::Command{"--sequence", "DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--w-shape W] [--max-raster-triangles N] [--ring N] [--stream EP]",
+    st::app::Command{"--sequence", "DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--w-shape W] [--max-raster-triangles N] [--no-calibration-check] [--ring N] [--stream EP]",
                      "replay a sequence through the tracker: trajectory.txt, frames.csv, summary.json in --out",
                      st::app::run_replay},
-    st::app::Command{"--camera", "ID --mesh FILE --calibration FILE [--out DIR] [--ring N] [--no-mask]",
+    st::app::Command{"--camera", "ID --mesh FILE --calibration FILE [--out DIR] [--ring N] [--no-mask] [--no-calibration-check]",
                      "track a live libcamera camera until Ctrl-C (not yet run on hardware)", st::app::run_camera},
     st::app::Command{"--list-cameras", "", "list the cameras libcamera finds", st::app::run_list_cameras},
     st::app::Command{"--version", "", "print the version", run_version},

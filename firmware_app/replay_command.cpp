@@ -2,10 +2,13 @@
 //   [--no-image-motion] [--no-ba] [--no-shape-ba] [--ba-lag N]
 //   [--fast-reference-luma L] [--fast-reference-contrast C] [--no-descriptor-refresh] [--w-shape W]
 //   [--max-raster-triangles N] [--registration-sigma-deg D --registration-sigma-mm M]
-//   [--registration-keyframes N] [--ring N]:
+//   [--registration-keyframes N] [--no-calibration-check] [--ring N]:
 // replays a sequence through the tracker (hal/replay.h) into the output
 // folder. Exit status: 0 done, 1 the sequence or the replay failed (a clear
-// message on stderr; the output written so far stays), 2 bad command line.
+// message on stderr; the output written so far stays), 2 bad command line,
+// 3 done, but the tracker refused the calibration (TrackerConfig::
+// check_calibration; every frame from then on is lost, the message says why;
+// a calibration only judged suspect gets the message and exit 0).
 
 #include <cstdio>
 #include <cstring>
@@ -42,6 +45,7 @@ struct ReplayArgs {
   double fast_reference_luma = TrackerConfig{}.fast_reference_luma;  // --fast-reference-luma L (0: off, the ablation)
   double fast_reference_contrast = TrackerConfig{}.fast_reference_contrast;  // --fast-reference-contrast C (0: off)
   bool refresh_descriptors = true;  // --no-descriptor-refresh: map points keep their first descriptor (ablation)
+  bool check_calibration = true;    // --no-calibration-check: no focal-length test of the calibration
   // --registration-sigma-deg D --registration-sigma-mm M (both, or neither: the registration
   // taken as exact), --registration-keyframes N: refining frame 0's registration (TrackerConfig)
   double registration_sigma_deg = TrackerConfig{}.registration_sigma_deg;
@@ -127,6 +131,8 @@ bool parse_args(Args args, ReplayArgs* a) {
       a->registration_keyframes = static_cast<int>(n);
     } else if (!std::strcmp(arg, "--no-descriptor-refresh")) {
       a->refresh_descriptors = false;
+    } else if (!std::strcmp(arg, "--no-calibration-check")) {
+      a->check_calibration = false;
     } else if (!std::strcmp(arg, "--ring") && has_value) {
       a->ring_slots = std::atoi(args[static_cast<std::size_t>(++i)]);
     } else if (!std::strcmp(arg, "--stream") && has_value) {
@@ -166,6 +172,7 @@ TrackerConfig tracker_config(const LoadedSequence& seq, const ReplayArgs& a) {
   c.fast_reference_luma = a.fast_reference_luma;
   c.fast_reference_contrast = a.fast_reference_contrast;
   c.refresh_descriptors = a.refresh_descriptors;
+  c.check_calibration = a.check_calibration;
   c.registration_sigma_deg = a.registration_sigma_deg;
   c.registration_sigma_mm = a.registration_sigma_mm;
   c.ba_registration_keyframes = a.registration_keyframes;
@@ -216,7 +223,7 @@ int run_replay(Args argv) {
         " [--no-shape-ba] [--ba-lag N] [--fast-reference-luma L] [--fast-reference-contrast C]"
         " [--no-descriptor-refresh] [--w-shape W] [--max-raster-triangles N]"
         " [--registration-sigma-deg D --registration-sigma-mm M]"
-        " [--registration-keyframes N]"
+        " [--registration-keyframes N] [--no-calibration-check]"
         " [--ring N]\n"
         "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
     return 2;
@@ -258,6 +265,7 @@ int run_replay(Args argv) {
                        {"ba_lag_frames", args.ba_lag}, {"fast_reference_luma", args.fast_reference_luma},
                        {"fast_reference_contrast", args.fast_reference_contrast},
                        {"refresh_descriptors", args.refresh_descriptors ? 1.0 : 0.0},
+                       {"check_calibration", args.check_calibration ? 1.0 : 0.0},
                        {"width", c.width}, {"height", c.height}};
   auto stats = run_replay(seq.value(), *processor, opt);
   if (!stats) {
@@ -270,7 +278,10 @@ int run_replay(Args argv) {
                  stats->frames, stats->error.c_str(), args.out.c_str());
     return 1;
   }
-  return 0;
+  const CalibrationCheck cal = processor->calibration_check();
+  if (cal.suspect)
+    std::fprintf(stderr, "scopetrack: %s\n", describe_calibration(cal, args.sequence + "/sequence.yaml").c_str());
+  return cal.refused ? 3 : 0;
 }
 
 }  // namespace st::app

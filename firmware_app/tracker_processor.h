@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cstdint>
+#include <string>
 
 #include "core/tracker.h"
 #include "firmware_app/mapping_worker.h"
@@ -27,6 +28,8 @@ class TrackerProcessor : public FrameProcessor {
   // frames and mean share of the valid mask, the dim frames (FAST
   // thresholds scaled down) and their smallest scale, and the BA figures.
   void append_summary(std::vector<std::pair<std::string, double>>* fields) const override;
+  // The tracker's calibration test (TrackerConfig::check_calibration).
+  CalibrationCheck calibration_check() const { return tracker_.calibration_check(); }
 
  private:
   Tracker tracker_;
@@ -41,5 +44,11 @@ class TrackerProcessor : public FrameProcessor {
   int mesh_triangles_ = 0;                // the mesh as given (the tracker may render a simplified copy)
   double min_fast_scale_ = 1.0;    // the smallest scale
 };
+
+// The message for a calibration judged suspect or refused
+// (CalibrationCheck): from which frame, the focal scale the video fits,
+// what it means and what to do; empty when neither. calibration_file
+// names the calibration's source.
+std::string describe_calibration(const CalibrationCheck& c, const std::string& calibration_file);
 
 }  // namespace st::app
