@@ -104,8 +104,7 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
       !(c.dead_reckoning_decay <= 1.0))
     return err("relocalisation settings out of range");
   if (c.calibration_test_jobs < 0 || !(c.calibration_min_f > 0) || !std::isfinite(c.calibration_min_f) ||
-      !(c.calibration_warn_scale_error > 0) || !(c.calibration_refuse_scale_error >= c.calibration_warn_scale_error) ||
-      !(c.calibration_refuse_scale_error < 1) || c.calibration_votes < 1)
+      !(c.calibration_scale_error > 0) || !(c.calibration_scale_error < 1) || c.calibration_votes < 1)
     return err("calibration test settings out of range");
   return Status::Ok();
 }
@@ -245,16 +244,6 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
   }
   const bool ba_applied = apply_ba();  // safe point: nothing of this frame uses the map yet
   if (calibration_.suspect && calibration_.suspect_frame < 0) calibration_.suspect_frame = frame_index;
-  if (calibration_.refused) {
-    // Defined degraded state: every pose would carry the calibration's error.
-    if (calibration_.refused_frame < 0) calibration_.refused_frame = frame_index;
-    r.calibration_refused = true;
-    r.ba_applied = ba_applied;
-    r.map_points = map_.point_count();
-    r.keyframes = map_.keyframe_count();
-    if (config_.now_ns) r.times_ms[static_cast<int>(Stage::kTotal)] = now_ms() - t0;
-    return r;
-  }
   valid_view_ = valid_scene_ = valid_mask_.build(luma);
   const double t_valid = now_ms();
   bool occluder_refused = false;

@@ -39,23 +39,20 @@ bool TrackerImpl::apply_ba() {
   return usable;
 }
 
-// One focal test's votes (TrackerConfig::check_calibration): a
-// significant fit (F) to focal lengths clearly off (|s - 1|, two levels),
-// on the same side as the votes before it; anything else resets a count.
+// One focal test's vote (TrackerConfig::check_calibration): a significant
+// fit (F) to focal lengths clearly off (|s - 1|), on the same side as the
+// votes before it; anything else resets the count.
 void TrackerImpl::judge_calibration(const BaSummary& s) {
   CalibrationCheck& c = calibration_;
   ++c.tests;
   c.max_f = std::max(c.max_f, s.focal_f);
+  const bool against =
+      s.focal_f > config_.calibration_min_f && std::abs(s.focal_scale - 1.0) > config_.calibration_scale_error;
   const bool same_side = (s.focal_scale > 1.0) == (c.focal_scale > 1.0);
-  const double error = std::abs(s.focal_scale - 1.0);
-  const bool significant = s.focal_f > config_.calibration_min_f;
-  const auto vote = [&](bool against, int votes) { return against ? (votes > 0 && same_side ? votes + 1 : 1) : 0; };
-  c.warn_votes = vote(significant && error > config_.calibration_warn_scale_error, c.warn_votes);
-  c.refuse_votes = vote(significant && error > config_.calibration_refuse_scale_error, c.refuse_votes);
+  c.votes = against ? (c.votes > 0 && same_side ? c.votes + 1 : 1) : 0;
   c.focal_scale = s.focal_scale;
   c.focal_f = s.focal_f;
-  if (c.warn_votes >= config_.calibration_votes) c.suspect = true;
-  if (c.refuse_votes >= config_.calibration_votes) c.suspect = c.refused = true;
+  if (c.votes >= config_.calibration_votes) c.suspect = true;
 }
 
 bool TrackerImpl::registration_free() const {

@@ -191,10 +191,8 @@ int finish_run(const CameraArgs& args, const SequenceConfig& cal, std::int64_t t
       std::fprintf(stderr, "scopetrack: %s\n", s.message().c_str());
   }
   if (!stats.error.empty()) std::fprintf(stderr, "scopetrack: capture ended: %s\n", stats.error.c_str());
-  if (const CalibrationCheck c = processor.calibration_check(); c.suspect) {
+  if (const CalibrationCheck c = processor.calibration_check(); c.suspect)
     std::fprintf(stderr, "scopetrack: %s\n", describe_calibration(c, args.calibration).c_str());
-    if (c.refused && stats.error.empty()) return 3;
-  }
   return stats.error.empty() ? 0 : 1;
 }
 

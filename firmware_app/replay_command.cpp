@@ -4,11 +4,10 @@
 //   [--max-raster-triangles N] [--registration-sigma-deg D --registration-sigma-mm M]
 //   [--registration-keyframes N] [--no-calibration-check] [--ring N]:
 // replays a sequence through the tracker (hal/replay.h) into the output
-// folder. Exit status: 0 done, 1 the sequence or the replay failed (a clear
-// message on stderr; the output written so far stays), 2 bad command line,
-// 3 done, but the tracker refused the calibration (TrackerConfig::
-// check_calibration; every frame from then on is lost, the message says why;
-// a calibration only judged suspect gets the message and exit 0).
+// folder. Exit status: 0 done (with a warning on stderr if the calibration
+// was judged suspect: TrackerConfig::check_calibration), 1 the sequence or
+// the replay failed (a clear message on stderr; the output written so far
+// stays), 2 bad command line.
 
 #include <cstdio>
 #include <cstring>
@@ -281,7 +280,7 @@ int run_replay(Args argv) {
   const CalibrationCheck cal = processor->calibration_check();
   if (cal.suspect)
     std::fprintf(stderr, "scopetrack: %s\n", describe_calibration(cal, args.sequence + "/sequence.yaml").c_str());
-  return cal.refused ? 3 : 0;
+  return 0;
 }
 
 }  // namespace st::app

@@ -78,8 +78,6 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
   fields->emplace_back("calibration_focal_f", cal.focal_f);
   fields->emplace_back("calibration_suspect", cal.suspect ? 1.0 : 0.0);
   fields->emplace_back("calibration_suspect_frame", cal.suspect_frame);
-  fields->emplace_back("calibration_refused", cal.refused ? 1.0 : 0.0);
-  fields->emplace_back("calibration_refused_frame", cal.refused_frame);
   if (!use_ba_) return;
   fields->emplace_back("ba_jobs_submitted", static_cast<double>(ba_submitted_));
   fields->emplace_back("ba_jobs_applied", static_cast<double>(ba_applied_));
@@ -87,22 +85,14 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
 }
 
 std::string describe_calibration(const CalibrationCheck& c, const std::string& calibration_file) {
-  if (!c.suspect && !c.refused) return {};
-  char buf[700];
-  if (c.refused)
-    std::snprintf(buf, sizeof buf,
-                  "calibration refused at frame %d: the video fits focal lengths %.3f x those of %s (F = %.0f;"
-                  " README, \"A wrong calibration\"), so every pose would be off by degrees and mm, and every"
-                  " frame from %d on is reported lost. Check camera_matrix (the calibration of another scope or"
-                  " zoom?), or run with --no-calibration-check to track anyway.",
-                  c.refused_frame, c.focal_scale, calibration_file.c_str(), c.focal_f, c.refused_frame);
-  else
-    std::snprintf(buf, sizeof buf,
-                  "calibration suspect from frame %d: the video fits focal lengths %.3f x those of %s (F = %.0f;"
-                  " README, \"A wrong calibration\"). Either the calibration is a few %% off or the organ differs"
-                  " from its prior in shape; the poses may be off by a degree and a few mm. Tracking went on."
-                  " Check camera_matrix.",
-                  c.suspect_frame, c.focal_scale, calibration_file.c_str(), c.focal_f);
+  if (!c.suspect) return {};
+  char buf[640];
+  std::snprintf(buf, sizeof buf,
+                "calibration suspect from frame %d: the video fits focal lengths %.3f x those of %s (F = %.0f;"
+                " README, \"A wrong calibration\"). Either the calibration is off (another scope's, or another"
+                " zoom's?) or the organ differs from its prior in shape; either way the poses may be off by"
+                " degrees and mm. Tracking went on. Check camera_matrix.",
+                c.suspect_frame, c.focal_scale, calibration_file.c_str(), c.focal_f);
   return buf;
 }
 

@@ -45,10 +45,10 @@ class TrackerProcessor : public FrameProcessor {
   double min_fast_scale_ = 1.0;    // the smallest scale
 };
 
-// The message for a calibration judged suspect or refused
-// (CalibrationCheck): from which frame, the focal scale the video fits,
-// what it means and what to do; empty when neither. calibration_file
-// names the calibration's source.
+// The warning for a calibration judged suspect (CalibrationCheck): from
+// which frame, the focal scale the video fits, what it means and what to
+// check; empty when not suspect. calibration_file names the calibration's
+// source.
 std::string describe_calibration(const CalibrationCheck& c, const std::string& calibration_file);
 
 }  // namespace st::app

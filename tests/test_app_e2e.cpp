@@ -4,11 +4,9 @@
 // sequence --check refuses, a bad command line).
 #include <doctest/doctest.h>
 
-#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <string>
-#include <vector>
 
 #include "core/sequence.h"
 #include "core/tracker.h"
@@ -441,35 +439,21 @@ TEST_CASE(
   CHECK(report->frames_in_csv == 30);
 }
 
-// The states column of frames.csv, in frame order.
-std::vector<std::string> frame_states(const std::filesystem::path& frames_csv) {
-  std::ifstream f(frames_csv);
-  std::vector<std::string> states;
-  std::string line;
-  std::getline(f, line);  // header
-  while (std::getline(f, line)) {
-    const std::size_t a = line.find(','), b = line.find(',', a + 1), c = line.find(',', b + 1);
-    if (a == std::string::npos || b == std::string::npos || c == std::string::npos) break;
-    states.push_back(line.substr(b + 1, c - b - 1));
-  }
-  return states;
-}
-
 // A calibration whose focal lengths are 15 % too long (another scope's, or
-// another zoom's): tracking stays self-consistent, so unchecked every frame
-// is reported while the poses are off by degrees (the control). The focal
-// test of the first window BA jobs (TrackerConfig::check_calibration)
-// refuses it: every frame from the verdict on is lost, exit status 3, and
-// the message names the focal scale the video fits.
-TEST_CASE("app_e2e: focal lengths 15 % off are refused: lost from the verdict on, exit 3, a clear message" *
+// another zoom's): tracking stays self-consistent, so every frame is
+// reported while the poses are off by degrees. The focal test of the first
+// window BA jobs (TrackerConfig::check_calibration) judges it suspect: a
+// warning naming the focal scale the video fits, the summary's flag; the
+// right calibration gets neither.
+TEST_CASE("app_e2e: focal lengths 15 % off are judged suspect: a warning, the summary's flag, tracking goes on" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_calibration");
   simulate(dir / "seq", 150, "480x270", 2);
   std::string err;
   REQUIRE_MESSAGE(track(dir / "seq", dir / "right", &err, kDeterministic) == 0, err);
-  CHECK(summary_number(dir / "right", "calibration_refused") == 0);
   CHECK(summary_number(dir / "right", "calibration_suspect") == 0);
   CHECK(summary_number(dir / "right", "calibration_tests") >= 2);
+  CHECK(err.find("calibration suspect") == std::string::npos);
   MESSAGE("right calibration: largest F " << summary_number(dir / "right", "calibration_max_f"));
   std::filesystem::copy(dir / "seq", dir / "bad", std::filesystem::copy_options::recursive);
   auto config = parse_sequence_yaml(test::read_file_bytes(dir / "seq" / "sequence.yaml"));
@@ -480,34 +464,25 @@ TEST_CASE("app_e2e: focal lengths 15 % off are refused: lost from the verdict on
     std::ofstream yaml(dir / "bad" / "sequence.yaml", std::ios::trunc);
     yaml << format_sequence_yaml(config.value());
   }
-  CHECK(track(dir / "bad", dir / "out", &err, kDeterministic) == 3);
+  CHECK(track(dir / "bad", dir / "out", &err, kDeterministic) == 0);
   MESSAGE(err);
-  CHECK(err.find("calibration refused at frame") != std::string::npos);
-  CHECK(err.find("--no-calibration-check") != std::string::npos);
-  CHECK(summary_number(dir / "out", "calibration_refused") == 1);
+  CHECK(err.find("calibration suspect from frame") != std::string::npos);
+  CHECK(err.find("camera_matrix") != std::string::npos);
   CHECK(summary_number(dir / "out", "calibration_suspect") == 1);
   const double scale = summary_number(dir / "out", "calibration_focal_scale");
   CHECK(scale > 0.80);
   CHECK(scale < 0.92);  // 1 / 1.15 = 0.87
-  const int verdict = static_cast<int>(summary_number(dir / "out", "calibration_refused_frame"));
+  const double verdict = summary_number(dir / "out", "calibration_suspect_frame");
   CHECK(verdict > 0);
   CHECK(verdict < 100);
-  const std::vector<std::string> states = frame_states(dir / "out" / "frames.csv");
-  REQUIRE(states.size() == 150);
-  int lost_after = 0;
-  for (std::size_t i = static_cast<std::size_t>(std::max(verdict, 0)); i < states.size(); ++i)
-    lost_after += states[i] == "lost";
-  CHECK(lost_after == 150 - verdict);
-  // The control: the same sequence unchecked reports every frame, off.
-  REQUIRE(track(dir / "bad", dir / "control", &err, kDeterministic + " --no-calibration-check") == 0);
-  auto control = evaluate_run(dir / "bad", dir / "control");
+  auto bad = evaluate_run(dir / "bad", dir / "out");
   auto right = evaluate_run(dir / "seq", dir / "right");
-  REQUIRE(control.ok());
+  REQUIRE(bad.ok());
   REQUIRE(right.ok());
-  MESSAGE("unchecked: " << format_eval_table(control.value()));
+  MESSAGE("focal lengths 15 % long: " << format_eval_table(bad.value()));
   MESSAGE("right calibration: " << format_eval_table(right.value()));
-  CHECK(control->result.lost_pct == 0.0);
-  CHECK(control->result.tre_median_px > 3.0 * right->result.tre_median_px);
+  CHECK(bad->result.lost_pct == 0.0);  // tracking went on, and was off:
+  CHECK(bad->result.tre_median_px > 3.0 * right->result.tre_median_px);
 }
 
 TEST_CASE("app_e2e: sequences --check refuses are refused before tracking with a clear error") {

@@ -531,6 +531,6 @@ TEST_CASE("ba window: the focal test finds focal lengths 10 % off and leaves the
   MESSAGE("registration 2 deg / 4 mm off, right focal lengths: s " << coarse.job.summary.focal_scale << ", F "
                                                                     << coarse.job.summary.focal_f);
   CHECK(coarse.job.summary.focal_tested);
-  CHECK(std::abs(coarse.job.summary.focal_scale - 1.0) < TrackerConfig{}.calibration_warn_scale_error);
+  CHECK(std::abs(coarse.job.summary.focal_scale - 1.0) < TrackerConfig{}.calibration_scale_error);
   CHECK(coarse.job.summary.focal_f < 30.0);  // measured: s 1.017, F 12.5
 }
