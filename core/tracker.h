@@ -195,7 +195,7 @@ struct TrackerConfig {
   // (CalibrationCheck; the app warns, summary.json says so). Tracking goes
   // on: the mesh is not the organ, and a prior off in shape pulls s as a
   // focal error does (the simulated kidney seen from close up with a
-  // prior 3 mm off in places: s 0.90-0.92 at F up to 196 with the right
+  // prior 3 mm off in places: s 0.90-0.92 at F up to 210 with the right
   // calibration), so the test cannot tell which of the two is wrong, only
   // that the video and the prior disagree in a way that costs degrees.
   // Both tests must hold: F alone flags small biases, |s - 1| alone the
@@ -244,9 +244,10 @@ struct CalibrationCheck {
   int votes = 0;           // consecutive votes against the calibration
   bool suspect = false;    // judged suspect at suspect_frame
   int suspect_frame = -1;
-  double focal_scale = 1;  // the last test's best-fitting focal scale
+  double focal_scale = 1;  // the best-fitting focal scale of the last test, or of the deciding one
   double focal_f = 0;      // ... and its F statistic
   double max_f = 0;        // the largest F of all tests
+  double last_scale = 1;   // the last test's scale (the side of 1 its vote was on)
 };
 
 class TrackerImpl;

@@ -48,8 +48,10 @@ void TrackerImpl::judge_calibration(const BaSummary& s) {
   c.max_f = std::max(c.max_f, s.focal_f);
   const bool against =
       s.focal_f > config_.calibration_min_f && std::abs(s.focal_scale - 1.0) > config_.calibration_scale_error;
-  const bool same_side = (s.focal_scale > 1.0) == (c.focal_scale > 1.0);
+  const bool same_side = (s.focal_scale > 1.0) == (c.last_scale > 1.0);
   c.votes = against ? (c.votes > 0 && same_side ? c.votes + 1 : 1) : 0;
+  c.last_scale = s.focal_scale;
+  if (c.suspect) return;  // the verdict's figures stay
   c.focal_scale = s.focal_scale;
   c.focal_f = s.focal_f;
   if (c.votes >= config_.calibration_votes) c.suspect = true;
