@@ -274,6 +274,8 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
   r.ba_submitted = submit_ba();
   r.map_points = map_.point_count();
   r.keyframes = map_.keyframe_count();
+  r.calibration_suspect = calibration_.suspect;
+  r.calibration_focal_scale = static_cast<float>(calibration_.focal_scale);
   if (config_.now_ns) r.times_ms[static_cast<int>(Stage::kTotal)] = now_ms() - t0;
   return r;
 }

@@ -235,6 +235,8 @@ struct TrackResult {
   float fast_threshold_scale = 1.f;  // FAST thresholds scaled for a dim or veiled frame (fast_reference_luma,
                                      // fast_reference_contrast)
   bool low_contrast = false;         // the contrast, not the luma, set fast_threshold_scale
+  bool calibration_suspect = false;  // the calibration was judged suspect (at this frame or before)
+  float calibration_focal_scale = 1.f;  // ... the focal scale the video fits (CalibrationCheck)
 };
 
 // What the focal-length test of the calibration found so far

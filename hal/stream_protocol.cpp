@@ -170,7 +170,8 @@ std::span<const std::uint8_t> StreamEncoder::colours(std::span<const ColourUpdat
 
 std::span<const std::uint8_t> StreamEncoder::health(const HealthSample& h) {
   fbb_.Clear();
-  const auto m = stream::CreateHealth(fbb_, h.fps, h.overruns, h.dropped_messages, h.frames);
+  const auto m = stream::CreateHealth(fbb_, h.fps, h.overruns, h.dropped_messages, h.frames,
+                                      h.calibration_suspect, h.calibration_focal_scale);
   return finish(stream::Payload::Health, m.Union());
 }
 
@@ -206,7 +207,8 @@ Result<DecodedMessage> decode_message(std::span<const std::uint8_t> b) {
     if (!out.colours) return make_error("colour delta without a colour vector");
   } else if (const auto* hl = msg->payload_as_Health()) {
     out.kind = MessageKind::kHealth;
-    out.health = {hl->fps(), hl->overruns(), hl->dropped_messages(), hl->frames()};
+    out.health = {hl->fps(), hl->overruns(), hl->dropped_messages(), hl->frames(),
+                  hl->calibration_suspect(), hl->calibration_focal_scale()};
   } else {
     return make_error("message without a payload this console understands (payload type " +
                       std::to_string(static_cast<int>(msg->payload_type())) + ")");

@@ -64,6 +64,8 @@ using ColourUpdate = TriangleRgb;
 struct HealthSample {
   float fps = 0;
   std::uint32_t overruns = 0, dropped_messages = 0, frames = 0;
+  bool calibration_suspect = false;     // TrackerConfig::check_calibration's verdict
+  float calibration_focal_scale = 1.f;  // the focal scale the video fits (when suspect)
 };
 
 // FNV-1a 64 over the vertex coordinates and triangle indices (their bytes):

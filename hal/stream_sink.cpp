@@ -322,6 +322,8 @@ void StreamSink::send_health() {
   h.fps = period_s > 0 ? static_cast<float>(frames_since_health_ / period_s) : 0.f;
   h.overruns = static_cast<std::uint32_t>(pose_overruns_.load() + other_overruns_.load());
   h.frames = static_cast<std::uint32_t>(poses_in_.load());
+  h.calibration_suspect = calibration_suspect_.load(std::memory_order_acquire);
+  h.calibration_focal_scale = calibration_scale_.load(std::memory_order_relaxed);
   for (Client& c : clients_) {
     if (!c.fd.valid()) continue;
     h.dropped_messages = c.dropped;

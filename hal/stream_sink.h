@@ -73,6 +73,12 @@ class StreamSink {
   void push_colours(std::span<const ColourUpdate> colours);
   // Any thread: a frame whose work was skipped somewhere (shown in Health).
   void note_overrun() { other_overruns_.fetch_add(1, std::memory_order_relaxed); }
+  // Any thread: the tracker judged the calibration suspect (shown in Health
+  // from then on, with the focal scale the video fits).
+  void note_calibration_suspect(float focal_scale) {
+    calibration_scale_.store(focal_scale, std::memory_order_relaxed);
+    calibration_suspect_.store(true, std::memory_order_release);
+  }
   // Owner: waits until at least n consoles are connected or timeout_s passes.
   bool wait_for_consoles(int n, double timeout_s) const;
   // Owner: sends what is queued to consoles that read (up to flush_timeout_s),
@@ -112,6 +118,8 @@ class StreamSink {
   std::atomic<bool> wake_pending_{false};
   std::atomic<int> connected_{0};
   std::atomic<std::uint64_t> poses_in_{0}, pose_overruns_{0}, other_overruns_{0};
+  std::atomic<bool> calibration_suspect_{false};
+  std::atomic<float> calibration_scale_{1.f};
   std::atomic<std::uint64_t> accepted_{0}, refused_{0}, dropped_{0}, sink_allocs_{0};
   double flush_timeout_s_ = 2.0;
   std::uint32_t frames_since_health_ = 0;

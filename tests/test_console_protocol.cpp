@@ -102,6 +102,14 @@ TEST_CASE("console_protocol: hello, pose, colours and health survive encode -> v
   CHECK(hl->kind == MessageKind::kHealth);
   CHECK(hl->health.dropped_messages == 7);
   CHECK(hl->health.fps == 29.5f);
+  CHECK_FALSE(hl->health.calibration_suspect);
+  HealthSample suspect;
+  suspect.calibration_suspect = true;
+  suspect.calibration_focal_scale = 0.87f;
+  auto hs = decode_message(copy(enc.health(suspect)));
+  REQUIRE(hs.ok());
+  CHECK(hs->health.calibration_suspect);
+  CHECK(hs->health.calibration_focal_scale == 0.87f);
 }
 
 TEST_CASE(

@@ -104,6 +104,11 @@ TEST_CASE(
   sink.push_colours(later);
   REQUIRE(con.pump(
       [&] { return con.session.coloured_triangles() == 2 && con.session.health().has_value(); }));
+  CHECK_FALSE(con.session.health()->calibration_suspect);
+  sink.note_calibration_suspect(0.87f);  // the tracker's verdict reaches the console's status line
+  REQUIRE(con.pump([&] { return con.session.health() && con.session.health()->calibration_suspect; }));
+  CHECK(con.session.health()->calibration_focal_scale == 0.87f);
+  CHECK(con.session.status_line().find("CALIBRATION SUSPECT") != std::string::npos);
   sink.stop();
   con.pump([] { return false; }, 2.0);
   CHECK(con.closed);  // stop() closes the connection

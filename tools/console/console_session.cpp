@@ -110,7 +110,13 @@ std::string ConsoleSession::status_line() const {
                 p.frame, to_string(p.state), static_cast<double>(h.fps), p.latency_us * 1e-3,
                 h.dropped_messages, h.overruns, coloured_count_,
                 hello_ ? hello_->mesh_triangle_count : 0u);
-  return buf;
+  std::string line = buf;
+  if (h.calibration_suspect) {
+    std::snprintf(buf, sizeof(buf), "  CALIBRATION SUSPECT (the video fits focal lengths x%.3f)",
+                  static_cast<double>(h.calibration_focal_scale));
+    line += buf;
+  }
+  return line;
 }
 
 Status ConsoleSession::write_record(const std::filesystem::path& dir) const {

@@ -143,6 +143,10 @@ int main(int argc, char** argv) {
       "%zu poses (%d out of order), %d hello(s), %d triangles coloured, %lld buffers rejected\n",
       session.poses().size(), session.out_of_order_poses(), session.hellos(),
       session.coloured_triangles(), static_cast<long long>(session.rejected()));
+  if (session.health() && session.health()->calibration_suspect)
+    std::printf("the tracker judged the calibration suspect: the video fits focal lengths %.3f x the calibrated"
+                " ones (or the organ differs from its prior in shape); the poses may be off by degrees and mm\n",
+                static_cast<double>(session.health()->calibration_focal_scale));
   if (!args.record.empty()) {
     if (st::Status s = session.write_record(args.record); !s) {
       std::fprintf(stderr, "scopetrack-console: %s\n", s.message().c_str());
