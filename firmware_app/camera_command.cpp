@@ -75,6 +75,7 @@ bool parse_args(Args args, CameraArgs* a) {
 struct LiveStatus {
   std::atomic<int> frames{0}, tracked{0}, lost{0};
   std::atomic<int> last_state{static_cast<int>(FrameState::kLost)};
+  std::atomic<bool> calibration_suspect{false};  // TrackerConfig::check_calibration's verdict
   std::atomic<bool> done{false};
 };
 
@@ -124,6 +125,7 @@ struct LiveLoop {
     status->tracked.store(stats.tracked, std::memory_order_relaxed);
     status->lost.store(stats.lost, std::memory_order_relaxed);
     status->last_state.store(static_cast<int>(row.record.state), std::memory_order_relaxed);
+    if (r.calibration_suspect) status->calibration_suspect.store(true, std::memory_order_relaxed);
     if (writer != nullptr && writer->push(row)) ++stats.writer_stalls;
   }
 };
@@ -158,9 +160,10 @@ void wait_for_stop(const sigset_t& signals, const LiveStatus& status, bool print
     const int sig = sigtimedwait(&signals, nullptr, &tick);
     if (sig == SIGINT || sig == SIGTERM) return;
     if (print)
-      std::fprintf(stderr, "\r%d frames  %d with a pose  %d lost  state %s   ", status.frames.load(),
+      std::fprintf(stderr, "\r%d frames  %d with a pose  %d lost  state %s%s   ", status.frames.load(),
                    status.tracked.load(), status.lost.load(),
-                   to_string(static_cast<FrameState>(status.last_state.load())));
+                   to_string(static_cast<FrameState>(status.last_state.load())),
+                   status.calibration_suspect.load() ? "  CALIBRATION SUSPECT" : "");
   }
 }
 
