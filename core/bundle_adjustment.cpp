@@ -531,7 +531,7 @@ bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
 // solution itself is restored after. F = (C_held - C_free) / (C_free / dof), C their final
 // costs (one parameter more): how much better the data fits another focal
 // length. Under a right calibration and Gaussian noise F follows F(1, dof),
-// P(F > 30) ~ 1e-7 for a window's thousands of residuals (see
+// P(F > 30) ~ 4e-8 for a window's thousands of residuals (see
 // BaSummary::focal_f).
 void BundleAdjuster::test_focal(BaJob* job, int max_iterations, double max_time_s) {
   const BaSummary kept = job->summary;

@@ -512,7 +512,7 @@ TEST_CASE("ba window: the focal test finds focal lengths 10 % off and leaves the
       CHECK(s.focal_f > 100.0);
     } else {
       CHECK(std::abs(s.focal_scale - 1.0) < 0.01);
-      CHECK(s.focal_f < 30.0);  // F(1, dof): P(F > 30) ~ 1e-7
+      CHECK(s.focal_f < 30.0);  // F(1, dof): P(F > 30) ~ 4e-8
     }
     CHECK(s.final_cost == plain.job.summary.final_cost);
     for (int k = 0; k < tested.job.keyframe_count; ++k)
