@@ -74,28 +74,25 @@ class ReprojectionCost final : public ceres::CostFunction {
     if (focal) sizes.push_back(1);
   }
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    if (!focal_) {
+    const auto evaluate = [&](const Pinhole& K) {
       if (held_)
-        return reprojection_cost(K_, px_, sqrt_info_, min_depth_mm_, pose_->held(), parameters[0], residuals, nullptr,
+        return reprojection_cost(K, px_, sqrt_info_, min_depth_mm_, pose_->held(), parameters[0], residuals, nullptr,
                                  jacobians ? jacobians[0] : nullptr);
-      return reprojection_cost(K_, px_, sqrt_info_, min_depth_mm_, pose_->at(parameters[0]), parameters[1], residuals,
+      return reprojection_cost(K, px_, sqrt_info_, min_depth_mm_, pose_->at(parameters[0]), parameters[1], residuals,
                                jacobians ? jacobians[0] : nullptr, jacobians ? jacobians[1] : nullptr);
-    }
-    // Focal lengths scaled by the block's s (principal point kept):
+    };
+    if (!focal_) return evaluate(K_);
+    // Focal lengths scaled by the last block's s (principal point kept):
     // r = sqrt_info (s f xn + c - q), so dr/ds = sqrt_info f xn = (r + sqrt_info (q - c)) / s.
-    const int b = held_ ? 0 : 1;
-    const double scale = parameters[b + 1][0];
+    const int b = held_ ? 1 : 2;
+    const double scale = parameters[b][0];
     Pinhole Ks = K_;
     Ks.fx *= scale;
     Ks.fy *= scale;
-    const bool ok =
-        held_ ? reprojection_cost(Ks, px_, sqrt_info_, min_depth_mm_, pose_->held(), parameters[0], residuals, nullptr,
-                                  jacobians ? jacobians[0] : nullptr)
-              : reprojection_cost(Ks, px_, sqrt_info_, min_depth_mm_, pose_->at(parameters[0]), parameters[1],
-                                  residuals, jacobians ? jacobians[0] : nullptr, jacobians ? jacobians[1] : nullptr);
-    if (ok && jacobians && jacobians[b + 1]) {
-      jacobians[b + 1][0] = (residuals[0] + sqrt_info_ * (px_.x() - K_.cx)) / scale;
-      jacobians[b + 1][1] = (residuals[1] + sqrt_info_ * (px_.y() - K_.cy)) / scale;
+    const bool ok = evaluate(Ks);
+    if (ok && jacobians && jacobians[b]) {
+      jacobians[b][0] = (residuals[0] + sqrt_info_ * (px_.x() - K_.cx)) / scale;
+      jacobians[b][1] = (residuals[1] + sqrt_info_ * (px_.y() - K_.cy)) / scale;
     }
     return ok;
   }
@@ -206,7 +203,7 @@ struct BundleAdjuster::Impl {
   ceres::Problem::Options problem_options;
   ceres::Solver::Options solver_options;
   ceres::Problem* problem = nullptr;  // during solve() only
-  double focal_scale[1] = {1.0};      // the focal test's block (solve_once with free_focal)
+  double focal_scale[1] = {1.0};      // the focal test's block (FocalTest::kFree)
 };
 
 BundleAdjuster::BundleAdjuster() = default;
@@ -303,14 +300,15 @@ bool BundleAdjuster::valid(const BaJob& job) const {
 
 // Adds every block and residual to impl_->problem; returns the number of
 // reprojection residuals.
-int BundleAdjuster::build(BaJob* job, bool free_prior, bool free_focal) {
+int BundleAdjuster::build(BaJob* job, bool free_prior, FocalTest focal) {
+  const bool focal_test = focal != FocalTest::kNone, free_focal = focal == FocalTest::kFree;
   ceres::Problem& problem = *impl_->problem;
   int fixed = 0, oldest = 0;
   for (int i = 0; i < job->keyframe_count; ++i) {
     const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
     impl_->pose_caches[static_cast<std::size_t>(i)].reset(job->pose(i));
     std::fill(pose_delta_block(i), pose_delta_block(i) + 6, 0.0);
-    const bool hold = k.fixed && !focal_test_;
+    const bool hold = k.fixed && !focal_test;
     held_[static_cast<std::size_t>(i)] = hold ? 1 : 0;
     fixed += hold ? 1 : 0;
     if (k.frame < job->keyframes[static_cast<std::size_t>(oldest)].frame) oldest = i;
@@ -326,13 +324,13 @@ int BundleAdjuster::build(BaJob* job, bool free_prior, bool free_focal) {
   // coarse registration) is taken up by the poses in both of them, not by
   // the focal length in one (held, a 2 deg / 4 mm registration looked like
   // focal lengths 6 % short at F 195).
-  const int prior_kf = focal_test_ ? -1 : job->prior.keyframe;
+  const int prior_kf = focal_test ? -1 : job->prior.keyframe;
   const bool use_prior = free_prior && prior_kf >= 0 && !held_[static_cast<std::size_t>(prior_kf)];
   if (prior_kf >= 0 && !free_prior && !held_[static_cast<std::size_t>(prior_kf)]) {
     held_[static_cast<std::size_t>(prior_kf)] = 1;
     ++fixed;
   }
-  if (fixed == 0 && !use_prior && !focal_test_) {  // gauge: hold the oldest keyframe
+  if (fixed == 0 && !use_prior && !focal_test) {  // gauge: hold the oldest keyframe
     held_[static_cast<std::size_t>(oldest)] = 1;
     fixed = 1;
   }
@@ -363,15 +361,13 @@ int BundleAdjuster::build(BaJob* job, bool free_prior, bool free_focal) {
     c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm,
           &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)], held, free_focal);
     double* point = job->points[static_cast<std::size_t>(o.point)].p_model;
-    if (held && free_focal)
-      problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), point, impl_->focal_scale);
-    else if (held)
-      problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), point);
-    else if (free_focal)
-      problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), pose_delta_block(o.keyframe), point,
-                               impl_->focal_scale);
-    else
-      problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), pose_delta_block(o.keyframe), point);
+    // The residual's blocks: [pose,] point[, focal scale] (ReprojectionCost::set).
+    double* blocks[3];
+    int n_blocks = 0;
+    if (!held) blocks[n_blocks++] = pose_delta_block(o.keyframe);
+    blocks[n_blocks++] = point;
+    if (free_focal) blocks[n_blocks++] = impl_->focal_scale;
+    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), blocks, n_blocks);
     if (job->keyframes[static_cast<std::size_t>(o.keyframe)].fixed) ++job->summary.fixed_observations;
   }
   if (options_.w_shape > 0) add_shape_residuals(job);
@@ -490,11 +486,11 @@ static std::shared_ptr<ceres::ParameterBlockOrdering> schur_ordering(BaJob* job,
 }
 
 bool BundleAdjuster::solve_once(BaJob* job, bool free_prior, int max_iterations, double max_time_s,
-                                SolveStats* stats, bool free_focal) {
+                                SolveStats* stats, FocalTest focal) {
   job->summary = BaSummary{};
   ceres::Problem problem(impl_->problem_options);
   impl_->problem = &problem;
-  const int used = build(job, free_prior, free_focal);
+  const int used = build(job, free_prior, focal);
   impl_->problem = nullptr;
   job->summary.keyframes = job->keyframe_count;
   job->summary.points = job->point_count;
@@ -502,7 +498,7 @@ bool BundleAdjuster::solve_once(BaJob* job, bool free_prior, int max_iterations,
   if (used == 0) return false;
   ceres::Solver::Options so = impl_->solver_options;
   so.linear_solver_ordering = schur_ordering(job, point_observed_, held_, impl_->deltas.get());
-  if (free_focal) so.linear_solver_ordering->AddElementToGroup(impl_->focal_scale, 1);
+  if (focal == FocalTest::kFree) so.linear_solver_ordering->AddElementToGroup(impl_->focal_scale, 1);
   if (max_iterations > 0) so.max_num_iterations = max_iterations;
   if (max_time_s > 0) so.max_solver_time_in_seconds = max_time_s;
   ceres::Solver::Summary s;
@@ -536,19 +532,16 @@ bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
 void BundleAdjuster::test_focal(BaJob* job, int max_iterations, double max_time_s) {
   const BaSummary kept = job->summary;
   save_solution(*job);
-  focal_test_ = true;
-  const bool free_prior = kept.prior_used;
-  bool ok = solve_once(job, free_prior, max_iterations, max_time_s, nullptr, false);
+  bool ok = solve_once(job, false, max_iterations, max_time_s, nullptr, FocalTest::kHeld);
   const double held_cost = job->summary.final_cost;
   int iterations = job->summary.iterations;
   double solver_ms = job->summary.solver_ms;
   restore_solution(job);
   SolveStats stats;
-  ok = solve_once(job, free_prior, max_iterations, max_time_s, &stats, true) && ok;
+  ok = solve_once(job, false, max_iterations, max_time_s, &stats, FocalTest::kFree) && ok;
   const double free_cost = job->summary.final_cost;
   iterations += job->summary.iterations;
   solver_ms += job->summary.solver_ms;
-  focal_test_ = false;
   restore_solution(job);
   const int dof = stats.residuals - stats.parameters;
   job->summary = kept;

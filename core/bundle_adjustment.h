@@ -124,11 +124,14 @@ class BundleAdjuster {
   };
   bool solve_tested_prior(BaJob* job, int max_iterations, double max_time_s);
   void test_focal(BaJob* job, int max_iterations, double max_time_s);
+  // The focal test's solves (test_focal): no keyframe held and no prior,
+  // the focal lengths held (kHeld) or scaled by one more parameter (kFree).
+  enum class FocalTest { kNone, kHeld, kFree };
   bool solve_once(BaJob* job, bool free_prior, int max_iterations, double max_time_s,
-                  SolveStats* stats, bool free_focal = false);
+                  SolveStats* stats, FocalTest focal = FocalTest::kNone);
   void save_solution(const BaJob& job);
   void restore_solution(BaJob* job) const;
-  int build(BaJob* job, bool free_prior, bool free_focal);
+  int build(BaJob* job, bool free_prior, FocalTest focal);
   void newest_frames_per_point(const BaJob& job, int cap, bool fixed_only, std::vector<std::int32_t>* rows) const;
   bool keep_observation(const BaJob& job, const BaObservation& o) const;
   bool usable_observation(const BaJob& job, const BaObservation& o) const;
@@ -162,7 +165,6 @@ class BundleAdjuster {
   bool plane_for(const BaPoint& p, ShapePlane* plane, int* queries);
   int max_points_ = 0, max_observations_ = 0;
   bool configured_ = false;
-  bool focal_test_ = false;  // during test_focal's solves: no keyframe held, no prior
 };
 
 }  // namespace st

@@ -53,10 +53,7 @@ void StreamLink::frame_done(const FrameRef& frame, const TrackResult& r, double 
   p.quality = posed ? static_cast<float>(r.inlier_ratio) : 0.f;
   p.latency_us = static_cast<std::uint32_t>(std::clamp(latency_ms * 1e3, 0.0, 4e9));
   if (posed) set_pose(&p, r.T_camera_model);
-  if (r.calibration_suspect && !calibration_noted_) {
-    sink_.note_calibration_suspect(r.calibration_focal_scale);
-    calibration_noted_ = true;
-  }
+  if (r.calibration_suspect) sink_.note_calibration_suspect(r.calibration_focal_scale);
   sink_.push_pose(p);
   if (!posed) return;
   ++posed_frames_;

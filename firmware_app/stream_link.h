@@ -47,7 +47,6 @@ class StreamLink : public FrameObserver {
   TextureWorker texture_;
   double fps_ = 0;
   std::int64_t posed_frames_ = 0, texture_skips_ = 0;
-  bool calibration_noted_ = false;  // the sink was told the calibration is suspect
 };
 
 }  // namespace st::app
