@@ -11,33 +11,6 @@
 
 namespace st {
 
-const char* to_string(TrackState s) {
-  switch (s) {
-    case TrackState::kInitialised: return "initialised";
-    case TrackState::kTracking: return "tracking";
-    case TrackState::kRelocalised: return "relocalised";
-    case TrackState::kLost: return "lost";
-  }
-  return "?";
-}
-
-const char* to_string(Stage s) {
-  switch (s) {
-    case Stage::kPyramid: return "pyramid";
-    case Stage::kOccluder: return "occluder";
-    case Stage::kRaster: return "raster";
-    case Stage::kDetect: return "detect";
-    case Stage::kDescribe: return "describe";
-    case Stage::kMatch: return "match";
-    case Stage::kPose: return "pose";
-    case Stage::kMap: return "map";
-    case Stage::kReloc: return "reloc";
-    case Stage::kTotal: return "total";
-    case Stage::kCount: break;
-  }
-  return "?";
-}
-
 namespace {
 
 Status check_config(const TrackerConfig& c, const CameraModel& camera) {

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets in build-fuzz/ and runs each for SECONDS
 # (default 60), one at a time, from the seeds in tools/fuzz/seeds.
-#   tools/fuzz/run.sh [SECONDS] [target...]     targets: y4m ply stl sequence_yaml tum markers register_pairs
+#   tools/fuzz/run.sh [SECONDS] [target...]     targets: y4m ply stl sequence_yaml tum markers register_pairs console_stream
 # Crashes land in build-fuzz/fuzz-out/<target>/crash-*; reproduce with
 #   build-fuzz/bin/fuzz_<target> build-fuzz/fuzz-out/<target>/crash-...
 set -euo pipefail
@@ -9,7 +9,7 @@ cd "$(dirname "$0")/../.."
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[[ ${#targets[@]} -gt 0 ]] || targets=(y4m ply stl sequence_yaml tum markers register_pairs)
+[[ ${#targets[@]} -gt 0 ]] || targets=(y4m ply stl sequence_yaml tum markers register_pairs console_stream)
 cmake -S . -B build-fuzz -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
   -DSCOPETRACK_FUZZ=ON -DSCOPETRACK_BUILD_TESTS=OFF -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build build-fuzz -j"$(nproc)" --target $(printf 'fuzz_%s ' "${targets[@]}")
