@@ -1,5 +1,6 @@
 #include "core/camera.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/capacity.h"
@@ -56,15 +57,21 @@ namespace {
 // left the image: along the way the map must keep its orientation
 // (det J > 0) and carry the point outwards (J u . u > 0). A ray that never
 // leaves the image within a 170-degree field of view folds as well.
+// Each ray steps one ideal pixel along its own direction, and at most
+// kMaxSteps times: fuzz_sequence_yaml found fy = 6e13 px with a 1/max(fx, fy)
+// step along the x axis, ~1e14 steps, a hang. A step coarser than a pixel
+// needs a ray of more than kMaxSteps pixels to 170 degrees, i.e. a focal
+// length above ~1700 px along it; the image's edge comes long before.
 Status check_no_fold(const Pinhole& K, const Distortion& d) {
   if (d.count == 0 || d.is_zero()) return Status::Ok();
   constexpr int kRays = 72;
   constexpr double kMaxRadius = 11.4;  // tan(85 deg): a 170-degree field of view
   constexpr double kMarginPx = 2.0;
-  const double step = 1.0 / std::max(K.fx, K.fy);  // about one pixel
+  constexpr int kMaxSteps = 20000;
   for (int i = 0; i < kRays; ++i) {
     const double angle = 2.0 * M_PI * i / kRays;
     const Vec2 u(std::cos(angle), std::sin(angle));
+    const double step = std::max(1.0 / std::hypot(K.fx * u.x(), K.fy * u.y()), kMaxRadius / kMaxSteps);
     bool left_image = false;
     for (double r = 0.0; r <= kMaxRadius && !left_image; r += step) {
       Eigen::Matrix2d J;
@@ -102,6 +109,17 @@ Status CameraModel::validate(const Pinhole& K, const Distortion& d) {
   if (!std::isfinite(K.fx) || !std::isfinite(K.fy) || K.fx <= 0 || K.fy <= 0)
     return make_error("focal lengths must be finite and positive (fx=" + std::to_string(K.fx) +
                       ", fy=" + std::to_string(K.fy) + ")");
+  // No scope sees less than a degree, and no sensor's pixels are four times
+  // taller than wide: such numbers are a typo or another camera's file.
+  const double side = std::max(K.width, K.height);
+  if (K.fx > kMaxFocalPerSide * side || K.fy > kMaxFocalPerSide * side)
+    return make_error("focal lengths fx=" + std::to_string(K.fx) + ", fy=" + std::to_string(K.fy) +
+                      " px give a field of view under 0.6 deg on a " + std::to_string(K.width) + "x" +
+                      std::to_string(K.height) + " image: not a laparoscope's calibration");
+  if (K.fy > kMaxFocalAspect * K.fx || K.fx > kMaxFocalAspect * K.fy)
+    return make_error("focal lengths fx=" + std::to_string(K.fx) + ", fy=" + std::to_string(K.fy) +
+                      " differ by more than " + std::to_string(static_cast<int>(kMaxFocalAspect)) +
+                      "x: not one camera's pixels");
   if (!std::isfinite(K.cx) || !std::isfinite(K.cy) || K.cx < 0 || K.cy < 0 ||
       K.cx > K.width - 1 || K.cy > K.height - 1)
     return make_error("principal point (" + std::to_string(K.cx) + ", " + std::to_string(K.cy) +

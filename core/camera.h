@@ -57,11 +57,15 @@ class CameraModel {
   CameraModel() = default;
   CameraModel(const Pinhole& K, const Distortion& d) : K_(K), d_(d) {}
 
-  // fx, fy > 0 and finite, principal point inside the image, distortion
-  // count 0/4/5/8 with finite values, image size positive and below caps,
-  // and a distortion that maps the image one to one (it does not fold
-  // over anywhere between the principal point and the image's edge).
+  // fx, fy > 0 and finite, at most kMaxFocalPerSide times the image's
+  // larger side (a field of view over 0.6 deg) and within kMaxFocalAspect
+  // of each other, principal point inside the image, distortion count
+  // 0/4/5/8 with finite values, image size positive and below caps, and a
+  // distortion that maps the image one to one (it does not fold over
+  // anywhere between the principal point and the image's edge).
   static Status validate(const Pinhole& K, const Distortion& d);
+  static constexpr double kMaxFocalPerSide = 100.0;
+  static constexpr double kMaxFocalAspect = 4.0;
 
   const Pinhole& pinhole() const { return K_; }
   const Distortion& distortion() const { return d_; }

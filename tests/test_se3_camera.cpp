@@ -6,6 +6,7 @@
 #include "core/camera.h"
 #include "core/se3.h"
 #include "support/alloc_guard.h"
+#include "support/support.h"
 
 #ifdef SCOPETRACK_HAVE_CALIB3D
 #include <opencv2/calib3d.hpp>
@@ -120,6 +121,34 @@ TEST_CASE("camera validation rejects bad calibrations") {
   Distortion three;
   three.count = 3;
   CHECK_FALSE(CameraModel::validate(Pinhole{900, 900, 640, 360, 1280, 720}, three).ok());
+  // A field of view under 0.6 deg, or pixels 4x taller than wide: refused;
+  // just inside both bounds: accepted.
+  CHECK_FALSE(CameraModel::validate(Pinhole{900, 128001, 640, 360, 1280, 720}, none).ok());
+  CHECK_FALSE(CameraModel::validate(Pinhole{900, 3601, 640, 360, 1280, 720}, none).ok());
+  CHECK_FALSE(CameraModel::validate(Pinhole{3601, 900, 640, 360, 1280, 720}, none).ok());
+  CHECK(CameraModel::validate(Pinhole{900, 3600, 640, 360, 1280, 720}, none).ok());
+  CHECK(CameraModel::validate(Pinhole{128000, 128000, 640, 360, 1280, 720}, none).ok());
+}
+
+TEST_CASE("camera validation of the lens returns promptly, whatever the numbers" *
+          doctest::timeout(test::budget_s(5))) {
+  // fuzz_sequence_yaml's input: fy = 6e13 px made the fold check step 1/fy
+  // along every ray, ~1e14 steps along the x axis. Now refused by the focal
+  // bounds; within them each ray steps about a pixel, at most 20000 times.
+  Distortion odd;
+  odd.count = 5;
+  odd.k = {5, 0, 0, 5, 0, 0, 0, 0};
+  CHECK_FALSE(CameraModel::validate(Pinhole{24, 6e13, 31.5, 23.5, 64, 48}, odd).ok());
+  for (const Pinhole& K : {Pinhole{900, 3600, 640, 360, 1280, 720}, Pinhole{3600, 900, 640, 360, 1280, 720},
+                           Pinhole{409600, 409600, 2047.5, 2047.5, 4096, 4096}}) {
+    CAPTURE(K.fx);
+    CAPTURE(K.fy);
+    (void)CameraModel::validate(K, odd);  // either verdict, but promptly
+  }
+  Distortion folds;
+  folds.count = 4;
+  folds.k = {-1.5, 0, 0, 0, 0, 0, 0, 0};
+  CHECK_FALSE(CameraModel::validate(Pinhole{3000, 3000, 2047.5, 2047.5, 4096, 4096}, folds).ok());
 }
 
 TEST_CASE("camera validation refuses a distortion that folds the image, accepts real lenses") {

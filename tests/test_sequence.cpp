@@ -124,6 +124,10 @@ TEST_CASE("sequence: bad sequence.yaml gives clear errors, never throws") {
       {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 0, 320, 0, 640, 240, 0, 0")), "3x3"},
       {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 0, 320, 0, abc, 240, 0, 0, 1")), "3x3"},
       {with_replaced("T_camera_model_init", "T_camera_model_init: " + matrix(4, 4, "1, 0, 0, .inf, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1")), "non-finite"},
+      // Found by fuzz_sequence_yaml: fy = 6e13 px made the lens check step
+      // ~1e14 times along one ray (a hang); now refused at once.
+      {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 0, 320, 0, 60000000000000., 240, 0, 0, 1")), "field of view"},
+      {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 0, 320, 0, 3000, 240, 0, 0, 1")), "not one camera"},
   };
   for (const Case& c : cases) {
     Result<SequenceConfig> r = make_error("not run");
