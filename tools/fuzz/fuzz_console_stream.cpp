@@ -17,11 +17,14 @@
 
 namespace {
 
-bool same(double a, double b) { return a == b || (std::isnan(a) && std::isnan(b)); }
+template <typename T>
+bool same(T a, T b) {
+  return a == b || (std::isnan(a) && std::isnan(b));
+}
 
 // decode(encode(m)) must give m back (NaN equal to NaN).
 void check_round_trip(const st::DecodedMessage& m) {
-  st::StreamEncoder enc;
+  static st::StreamEncoder enc;  // builds its largest message once, on construction
   std::span<const std::uint8_t> bytes;
   switch (m.kind) {
     case st::MessageKind::kHello: bytes = enc.hello(m.hello); break;
@@ -42,9 +45,15 @@ void check_round_trip(const st::DecodedMessage& m) {
     case st::MessageKind::kHello:
       if (r.hello.mesh_triangle_count != m.hello.mesh_triangle_count || r.hello.mesh_checksum != m.hello.mesh_checksum ||
           r.hello.image_width != m.hello.image_width || r.hello.image_height != m.hello.image_height ||
-          r.hello.protocol_version != m.hello.protocol_version || !same(r.hello.K.fx, m.hello.K.fx) ||
+          r.hello.protocol_version != m.hello.protocol_version ||
+          !same(r.hello.K.fx, m.hello.K.fx) || !same(r.hello.K.fy, m.hello.K.fy) || !same(r.hello.K.cx, m.hello.K.cx) ||
           !same(r.hello.K.cy, m.hello.K.cy) || !same(r.hello.source_fps, m.hello.source_fps))
         __builtin_trap();
+      // Coefficients, not their count: a Hello without intrinsics decodes
+      // with none (count 0), re-encoded it carries five zeros, the same lens.
+      for (int i = 0; i < 8; ++i)
+        if (!same(r.hello.distortion.k[static_cast<std::size_t>(i)], m.hello.distortion.k[static_cast<std::size_t>(i)]))
+          __builtin_trap();
       break;
     case st::MessageKind::kPose:
       if (r.pose.frame != m.pose.frame || r.pose.state != m.pose.state || r.pose.inliers != m.pose.inliers ||
