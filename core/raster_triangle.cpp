@@ -50,13 +50,6 @@ void init_walk(EdgeWalk* w, std::int64_t n0, std::int64_t dn, std::int64_t m, do
   w->rd = exact ? 0 : m - cr;
 }
 
-// An edge that never binds (q stays put): pads the walkers to two per side.
-void init_inert(EdgeWalk* w, std::int64_t q_fixed) {
-  w->q = q_fixed;
-  w->r = w->qd = w->rd = 0;
-  w->m = 1;
-}
-
 // Branch-free: the carry is data-dependent, a branch would mispredict.
 inline void step(EdgeWalk* w) {
   w->r += w->rd;
@@ -110,6 +103,19 @@ struct SimdSpanConstants {
   }
 };
 
+// One group of kLanes pixels from column x (k: their x - x0): the depth
+// test on 1/z and the writes, in lanes where keep is set. Both old values
+// are loaded before either store.
+inline void fill_group(const SimdSpanConstants& c, const cv::v_float32& iz0, const cv::v_float32& k,
+                       int x, const cv::v_float32& keep, float* iz_buf, std::int32_t* ids) {
+  const cv::v_float32 iz = cv::v_min(cv::v_max(iz0 + c.gx * k, c.iz_min), c.iz_max);
+  const cv::v_float32 old = cv::vx_load(iz_buf + x);
+  const cv::v_int32 old_id = cv::vx_load(ids + x);
+  const cv::v_float32 pass = (iz > old) & keep;
+  cv::v_store(iz_buf + x, cv::v_select(pass, iz, old));
+  cv::v_store(ids + x, cv::v_select(cv::v_reinterpret_as_s32(pass), c.id, old_id));
+}
+
 // Same arithmetic as the portable kernel, kLanes pixels per step (x - x0 is
 // an exact small integer in float, so stepping it changes no bit). The last
 // group may reach kLanes - 1 pixels past x1: those lanes are read and
@@ -117,17 +123,14 @@ struct SimdSpanConstants {
 inline void fill_span_simd(const Span& s, const SimdSpanConstants& c, float* iz_buf,
                            std::int32_t* ids) {
   const cv::v_float32 iz0 = cv::vx_setall_f32(s.iz0);
-  const cv::v_int32 last = cv::vx_setall_s32(s.x1);
+  const cv::v_float32 all = cv::v_reinterpret_as_f32(cv::vx_setall_s32(-1));
   cv::v_float32 k = c.lane;
-  for (int x = s.x0; x <= s.x1; x += kLanes, k = k + c.step) {
-    const cv::v_float32 iz = cv::v_min(cv::v_max(iz0 + c.gx * k, c.iz_min), c.iz_max);
-    const cv::v_float32 old = cv::vx_load(iz_buf + x);
-    cv::v_float32 pass = iz > old;
-    if (x + kLanes - 1 > s.x1)
-      pass = pass & cv::v_reinterpret_as_f32((cv::vx_setall_s32(x) + c.lane_i) <= last);
-    cv::v_store(iz_buf + x, cv::v_select(pass, iz, old));
-    const cv::v_int32 old_id = cv::vx_load(ids + x);
-    cv::v_store(ids + x, cv::v_select(cv::v_reinterpret_as_s32(pass), c.id, old_id));
+  int x = s.x0;
+  for (; x + kLanes - 1 <= s.x1; x += kLanes, k = k + c.step)
+    fill_group(c, iz0, k, x, all, iz_buf, ids);
+  if (x <= s.x1) {
+    const cv::v_int32 in = (cv::vx_setall_s32(x) + c.lane_i) <= cv::vx_setall_s32(s.x1);
+    fill_group(c, iz0, k, x, cv::v_reinterpret_as_f32(in), iz_buf, ids);
   }
 }
 
@@ -167,8 +170,22 @@ void resolve_tail(float* depth, std::uint8_t* mask, int x0, int x1, int* covered
 
 // Pixel (x, y) is inside edge a->b if E = dx (Y - Ya) - dy (X - Xa) > 0, or
 // E == 0 on a top or left edge (dy < 0, or dy == 0 and dx > 0), X = x S.
-// Fills the walkers and the row range of out; false if no row is covered.
-bool setup_edges(const FixedTriangle& t, int width, int height, PreparedTriangle* out) {
+// Inside: A x + B(y) + bias >= 0 with A = -dy S; bound x >= N / A (A > 0,
+// a lower bound) or x <= -N / |A| (A < 0, an upper bound; the walker holds
+// -x), N = -(B(y) + bias), N falls by dx S per row. The walker of edge i
+// (from vertex i to i + 1) starting at row y0:
+void init_edge_walk(const FixedTriangle& t, int i, std::int64_t y0, double inv_m, EdgeWalk* w) {
+  constexpr std::int64_t S = kSubpixelScale;
+  const int j = i == 2 ? 0 : i + 1;
+  const std::int64_t dx = t.x[j] - t.x[i], dy = t.y[j] - t.y[i];
+  const std::int64_t bias = dy < 0 ? 0 : -1;  // top-left edges include E == 0
+  const std::int64_t n0 = -(dx * (y0 * S - t.y[i]) + dy * t.x[i] + bias);
+  init_walk(w, n0, dx * S, (dy < 0 ? -dy : dy) * S, inv_m);
+}
+
+// Fills the walkers, the hand-over and the row range of out; false if no
+// row is covered.
+bool setup_edges(const FixedTriangle& t, int height, PreparedTriangle* out) {
   constexpr std::int64_t S = kSubpixelScale;
   const std::int64_t ymin = std::min({t.y[0], t.y[1], t.y[2]});
   const std::int64_t ymax = std::max({t.y[0], t.y[1], t.y[2]});
@@ -185,7 +202,6 @@ bool setup_edges(const FixedTriangle& t, int width, int height, PreparedTriangle
       y_last = std::min(y_last, ceil_px(t.y[i]) - 1);
   }
   if (y_first > y_last) return false;
-  int n_lower = 0, n_upper = 0;
   // 1/|dy| of the three edges from one division (an estimate is enough: the
   // edge walkers correct it exactly). Horizontal edges count as 1.
   double ady[3];
@@ -196,71 +212,84 @@ bool setup_edges(const FixedTriangle& t, int width, int height, PreparedTriangle
   const double inv_all = 1.0 / (ady[0] * ady[1] * ady[2] * static_cast<double>(S));
   const double inv_m[3] = {ady[1] * ady[2] * inv_all, ady[0] * ady[2] * inv_all,
                            ady[0] * ady[1] * inv_all};
+  int lower[2], upper[2], n_lower = 0, n_upper = 0;
   for (int i = 0; i < 3; ++i) {
-    const int j = i == 2 ? 0 : i + 1;
-    const std::int64_t dx = t.x[j] - t.x[i], dy = t.y[j] - t.y[i];
-    if (dy == 0) continue;
-    // Inside: A x + B(y) + bias >= 0 with A = -dy S; bound x >= N / A (A > 0)
-    // or x <= -N / |A| (A < 0), N = -(B(y) + bias), N falls by dx S per row.
-    const std::int64_t bias = dy < 0 ? 0 : -1;  // top-left edges include E == 0
-    const std::int64_t n0 = -(dx * (y_first * S - t.y[i]) + dy * t.x[i] + bias);
-    EdgeWalk* w = dy < 0 ? &out->lower[n_lower++] : &out->upper[n_upper++];
-    init_walk(w, n0, dx * S, (dy < 0 ? -dy : dy) * S, inv_m[i]);
+    const std::int64_t dy = t.y[i == 2 ? 0 : i + 1] - t.y[i];
+    if (dy < 0) lower[n_lower++] = i;
+    if (dy > 0) upper[n_upper++] = i;
   }
-  if (n_lower == 0 || n_upper == 0) return false;            // degenerate: nothing
-  if (n_lower < 2) init_inert(&out->lower[1], 0);             // x >= 0 anyway
-  if (n_upper < 2) init_inert(&out->upper[1], -(width - 1));  // x <= width - 1 anyway
+  if (n_lower == 0 || n_upper == 0) return false;  // degenerate: nothing
+  // The side with two edges: they share the vertex v; the edge reaching
+  // above v is in charge of the rows up to v's, the other one below.
+  const bool two_lower = n_lower == 2;
+  const int* side = two_lower ? lower : upper;
+  int first = side[0], second = side[0];
+  std::int64_t y_switch = y_last;
+  if (n_lower == 2 || n_upper == 2) {
+    const int e0 = side[0], e1 = side[1];
+    const int v = e1 == (e0 == 2 ? 0 : e0 + 1) ? e1 : e0;  // the shared vertex
+    const int e_into_v = v == 0 ? 2 : v - 1;  // edge e runs from vertex e to e + 1
+    const bool into_is_upper = t.y[e_into_v] < t.y[v == 2 ? 0 : v + 1];
+    first = into_is_upper ? e_into_v : v;
+    second = into_is_upper ? v : e_into_v;
+    y_switch = floor_px(t.y[v]);
+  }
+  const int lower_edge = two_lower ? first : lower[0];
+  const int upper_edge = two_lower ? upper[0] : first;
+  if (y_switch < y_first) {
+    // The hand-over lies above the first row drawn: start with the second edge.
+    init_edge_walk(t, second, y_first, inv_m[second], two_lower ? &out->lower : &out->upper);
+    init_edge_walk(t, two_lower ? upper_edge : lower_edge, y_first,
+                   inv_m[two_lower ? upper_edge : lower_edge], two_lower ? &out->upper : &out->lower);
+    y_switch = y_last;
+  } else {
+    init_edge_walk(t, lower_edge, y_first, inv_m[lower_edge], &out->lower);
+    init_edge_walk(t, upper_edge, y_first, inv_m[upper_edge], &out->upper);
+    if (y_switch < y_last) init_edge_walk(t, second, y_switch + 1, inv_m[second], &out->next);
+  }
+  out->y_switch = static_cast<std::int32_t>(std::min(y_switch, y_last));
+  out->switch_lower = two_lower;
   out->y_next = static_cast<std::int32_t>(y_first);
   out->y_last = static_cast<std::int32_t>(y_last);
   return true;
 }
 
-// Starts loading the 1/z and id lines of row y_ahead's span (estimated by
-// one more step of the walkers; a prefetch needs no exactness) while the
-// current rows are drawn: the planes exceed L2, so each row's first touch
-// otherwise stalls on L3 (perf: the span's 1/z load is the hottest spot).
-inline void prefetch_row_ahead(const PreparedTriangle& t, int y_ahead, int y_end,
-                               const Target& target) {
-  if (y_ahead > y_end) return;
-  const std::int64_t x0 = std::max({std::int64_t{0}, t.lower[0].q - t.lower[0].qd,
-                                    t.lower[1].q - t.lower[1].qd});
-  const std::int64_t x1 = std::min({std::int64_t{target.width - 1}, -(t.upper[0].q - t.upper[0].qd),
-                                    -(t.upper[1].q - t.upper[1].qd)});
-  if (x0 > x1) return;
-  const std::ptrdiff_t row = static_cast<std::ptrdiff_t>(y_ahead) * target.stride;
-  __builtin_prefetch(target.depth + row + x0, 1);
-  __builtin_prefetch(target.triangle_id + row + x0, 1);
-  __builtin_prefetch(target.depth + row + x1, 1);
-  __builtin_prefetch(target.triangle_id + row + x1, 1);
-}
-
 // The scanline walk over rows y_next..y_stop; fill(span, row offset) writes
-// one span.
+// one span. The two walkers in charge live in registers.
 template <typename Fill>
 void walk_rows(PreparedTriangle* t, int y_stop, const Target& target, Span* s,
                Counters* counters, Fill fill) {
   const std::int64_t x_limit = target.width - 1;
   std::int64_t fragments = 0;
   const int y_end = std::min<int>(t->y_last, y_stop);
+  EdgeWalk lo = t->lower, up = t->upper;
+  std::int32_t* const dirty_x0 = target.dirty_x0;
+  std::int32_t* const dirty_x1 = target.dirty_x1;
   int y = t->y_next;
-  for (; y <= y_end; ++y) {
-    const std::int64_t x0 = std::max({std::int64_t{0}, t->lower[0].q, t->lower[1].q});
-    const std::int64_t x1 = std::min({x_limit, -t->upper[0].q, -t->upper[1].q});
-    step(&t->lower[0]);
-    step(&t->lower[1]);
-    step(&t->upper[0]);
-    step(&t->upper[1]);
-    prefetch_row_ahead(*t, y + 2, y_end, target);
-    if (x0 > x1) continue;
-    s->x0 = static_cast<int>(x0);
-    s->x1 = static_cast<int>(x1);
-    s->iz0 = static_cast<float>(t->c + t->gy * static_cast<double>(y) +
-                                t->gx_d * static_cast<double>(x0));
-    fill(*s, static_cast<std::ptrdiff_t>(y) * target.stride);
-    target.dirty_x0[y] = std::min(target.dirty_x0[y], s->x0);
-    target.dirty_x1[y] = std::max(target.dirty_x1[y], s->x1);
-    fragments += x1 - x0 + 1;
+  while (y <= y_end) {
+    const int seg_end = std::min(y_end, static_cast<int>(t->y_switch));
+    for (; y <= seg_end; ++y) {
+      const std::int64_t x0 = std::max(std::int64_t{0}, lo.q);
+      const std::int64_t x1 = std::min(x_limit, -up.q);
+      step(&lo);
+      step(&up);
+      if (x0 > x1) continue;
+      s->x0 = static_cast<int>(x0);
+      s->x1 = static_cast<int>(x1);
+      s->iz0 = static_cast<float>(t->c + t->gy * static_cast<double>(y) +
+                                  t->gx_d * static_cast<double>(x0));
+      fill(*s, static_cast<std::ptrdiff_t>(y) * target.stride);
+      dirty_x0[y] = std::min(dirty_x0[y], s->x0);
+      dirty_x1[y] = std::max(dirty_x1[y], s->x1);
+      fragments += x1 - x0 + 1;
+    }
+    if (y > y_end) break;
+    // Past the middle vertex of the side with two edges: hand over.
+    (t->switch_lower ? lo : up) = t->next;
+    t->y_switch = t->y_last;
   }
+  t->lower = lo;
+  t->upper = up;
   t->y_next = y;
   counters->fragments += fragments;
 }
@@ -393,9 +422,9 @@ void draw_box_simd(const BoxSetup& b, const Target& target, Counters* counters) 
       count = count - cover;
       const cv::v_float32 iz = cv::v_min(cv::v_max(iz_row + gx * kf, iz_min), iz_max);
       const cv::v_float32 old = cv::vx_load(iz_buf + x);
+      const cv::v_int32 old_id = cv::vx_load(ids + x);
       const cv::v_float32 pass = (iz > old) & cv::v_reinterpret_as_f32(cover);
       cv::v_store(iz_buf + x, cv::v_select(pass, iz, old));
-      const cv::v_int32 old_id = cv::vx_load(ids + x);
       cv::v_store(ids + x, cv::v_select(cv::v_reinterpret_as_s32(pass), id, old_id));
       ka = ka + k_step[0];
       kb = kb + k_step[1];
@@ -425,7 +454,7 @@ int resolve_row(float* depth, std::uint8_t* mask, int x0, int x1, bool use_simd)
 
 bool prepare(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t id,
              const Target& target, PreparedTriangle* out) {
-  if (!setup_edges(tri, target.width, target.height, out)) return false;
+  if (!setup_edges(tri, target.height, out)) return false;
   out->id = id;
   out->gx = static_cast<float>(plane.gx);
   out->iz_min = plane.iz_min;

@@ -63,12 +63,19 @@ struct EdgeWalk {
   std::int64_t q, r, m, qd, rd;
 };
 
-// A triangle set up for the scanline walk, resumable row band by row band:
-// two walkers bound x from below and two from above (inert ones pad), rows
-// y_next..y_last remain. Setup once, drawn by one or more draw_rows() calls.
+// A triangle set up for the scanline walk, resumable row band by row band.
+// At any row one edge bounds x from below and one from above: a side with
+// two edges (sharing the middle vertex of that side) hands over from its
+// upper to its lower edge after row y_switch; on a convex triangle the edge
+// not in charge of a row never binds there, so this equals intersecting all
+// three edges. Rows y_next..y_last remain. Setup once, drawn by one or more
+// draw_rows() calls.
 struct PreparedTriangle {
-  EdgeWalk lower[2], upper[2];
+  EdgeWalk lower, upper;  // in charge of row y_next
+  EdgeWalk next;          // takes over after row y_switch (side: switch_lower)
   std::int32_t y_next = 0, y_last = -1;
+  std::int32_t y_switch = 0;  // last row of the first edge; >= y_last: no hand-over
+  bool switch_lower = false;  // the hand-over is on the lower (true) or upper side
   std::int32_t id = -1;
   float gx = 0, iz_min = 0, iz_max = 0;
   double c = 0, gy = 0, gx_d = 0;  // the depth plane (see DepthPlane)
