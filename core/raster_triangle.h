@@ -33,6 +33,9 @@ struct Target {
   int width = 0, height = 0;
   std::ptrdiff_t stride = 0;
   bool use_simd = true;  // false: the portable span and box kernels (tests compare both)
+  // With use_simd: the AVX-512 forms of both kernels (16 pixels a step,
+  // masked loads and stores). Only where avx512_available() says so.
+  bool use_avx512 = false;
   // Per row, the columns written so far [dirty_x0, dirty_x1] (height
   // entries each): the next render clears only those.
   std::int32_t* dirty_x0 = nullptr;
@@ -109,5 +112,9 @@ int resolve_row(float* depth, std::uint8_t* mask, int x0, int x1, bool use_simd)
 
 // True if the SIMD span kernel is compiled in (else the portable one runs).
 bool simd_enabled();
+
+// True if this build has the AVX-512 kernels (x86-64, GCC or Clang) and the
+// CPU and OS it runs on support AVX-512F. Bit-identical with the others.
+bool avx512_available();
 
 }  // namespace st::raster

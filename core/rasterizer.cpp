@@ -183,6 +183,7 @@ void MeshRasterizer::order_for_locality(const Mesh& mesh) {
 }
 
 bool MeshRasterizer::simd_available() { return raster::simd_enabled(); }
+bool MeshRasterizer::avx512_available() { return raster::avx512_available(); }
 
 // Only what the last render wrote (and resets that record): with the organ
 // in view this is about the covered area rather than the whole image.
@@ -220,6 +221,7 @@ raster::Target MeshRasterizer::target() {
   t.height = raster_height_;
   t.stride = raster_width_;
   t.use_simd = config_.use_simd;
+  t.use_avx512 = config_.use_simd && config_.allow_avx512 && raster::avx512_available();
   t.dirty_x0 = dirty_x0_.data();
   t.dirty_x1 = dirty_x1_.data();
   return t;

@@ -34,6 +34,7 @@ struct RasterConfig {
   bool cull_backfaces = true;  // closed organ: back faces are never visible
   bool use_simd = true;        // false forces the portable forms of both kernels (the scanline
                                // span and the small-triangle box) and of the resolve pass
+  bool allow_avx512 = true;    // with use_simd: the AVX-512 kernels where the CPU has them
 };
 
 // What the last render() did (for tests, the bench and diagnostics).
@@ -59,6 +60,9 @@ class MeshRasterizer {
   const RasterStats& stats() const { return stats_; }
   // True if this build runs the SIMD kernels (config.use_simd permitting).
   static bool simd_available();
+  // True if the AVX-512 kernels run here (x86-64 build, CPU with AVX-512F;
+  // config.use_simd and config.allow_avx512 permitting).
+  static bool avx512_available();
 
   const RasterConfig& config() const { return config_; }
   // The pinhole of the raster (K_full scaled by 1/downscale).

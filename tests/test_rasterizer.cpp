@@ -143,18 +143,29 @@ TEST_CASE("raster: SIMD and portable kernels give identical buffers") {
   RasterConfig cfg;
   cfg.width = 1280;
   cfg.height = 720;
-  MeshRasterizer a, b;
-  REQUIRE(a.configure(liver, cfg).ok());
+  // Portable, universal SIMD (SSE2 / NEON), and the default: AVX-512 where
+  // the CPU has it, else universal SIMD again.
+  MeshRasterizer portable, simd, best;
   cfg.use_simd = false;
-  REQUIRE(b.configure(liver, cfg).ok());
-  a.render(T, bench_pinhole());
-  b.render(T, bench_pinhole());
-  REQUIRE(a.covered_pixels() > 100000);
-  CHECK(a.covered_pixels() == b.covered_pixels());
-  long diff = 0;
-  for (int y = 0; y < 720; ++y)
-    for (int x = 0; x < 1280; ++x)
-      diff += a.depth()(x, y) != b.depth()(x, y) ||
-              a.triangle_id()(x, y) != b.triangle_id()(x, y) || a.mask()(x, y) != b.mask()(x, y);
-  CHECK(diff == 0);
+  REQUIRE(portable.configure(liver, cfg).ok());
+  cfg.use_simd = true;
+  cfg.allow_avx512 = false;
+  REQUIRE(simd.configure(liver, cfg).ok());
+  cfg.allow_avx512 = true;
+  REQUIRE(best.configure(liver, cfg).ok());
+  if (MeshRasterizer::avx512_available()) MESSAGE("AVX-512 kernels tested too");
+  portable.render(T, bench_pinhole());
+  for (MeshRasterizer* r : {&simd, &best}) {
+    r->render(T, bench_pinhole());
+    REQUIRE(r->covered_pixels() > 100000);
+    CHECK(r->covered_pixels() == portable.covered_pixels());
+    CHECK(r->stats().fragments == portable.stats().fragments);
+    long diff = 0;
+    for (int y = 0; y < 720; ++y)
+      for (int x = 0; x < 1280; ++x)
+        diff += r->depth()(x, y) != portable.depth()(x, y) ||
+                r->triangle_id()(x, y) != portable.triangle_id()(x, y) ||
+                r->mask()(x, y) != portable.mask()(x, y);
+    CHECK(diff == 0);
+  }
 }

@@ -24,7 +24,7 @@ struct TestTarget {
   std::vector<std::uint8_t> mask = std::vector<std::uint8_t>(kW * kH + kTargetPad, 0);
   std::vector<std::int32_t> x0 = std::vector<std::int32_t>(kH, kW);
   std::vector<std::int32_t> x1 = std::vector<std::int32_t>(kH, -1);
-  Target view(bool simd) {
+  Target view(bool simd, bool avx512 = false) {
     Target t;
     t.depth = iz.data();
     t.triangle_id = id.data();
@@ -33,6 +33,7 @@ struct TestTarget {
     t.height = kH;
     t.stride = kW;
     t.use_simd = simd;
+    t.use_avx512 = avx512;
     t.dirty_x0 = x0.data();
     t.dirty_x1 = x1.data();
     return t;
@@ -105,7 +106,9 @@ TEST_CASE("raster kernels: the box kernel covers exactly the scanline walk's pix
   CHECK(tested > 3500);
 }
 
-TEST_CASE("raster kernels: SIMD and portable box kernels write identical bits") {
+// The forms of the box kernel this machine runs: universal SIMD (SSE2 or
+// NEON), and AVX-512 where the CPU has it.
+void box_kernels_match_portable(bool avx512) {
   std::mt19937 rng(11);
   const DepthPlane plane = test_plane();
   TestTarget simd, portable;
@@ -116,7 +119,7 @@ TEST_CASE("raster kernels: SIMD and portable box kernels write identical bits") 
     if (!random_small_triangle(rng, k % 3 == 0, &t)) continue;
     DepthPlane p = plane;
     p.c += 1e-4 * (k % 17);
-    draw_small(t, p, k, simd.view(true), &c_simd);
+    draw_small(t, p, k, simd.view(true, avx512), &c_simd);
     draw_small(t, p, k, portable.view(false), &c_portable);
   }
   CHECK(c_simd.fragments == c_portable.fragments);
@@ -127,6 +130,14 @@ TEST_CASE("raster kernels: SIMD and portable box kernels write identical bits") 
   CHECK(differ == 0);
   // The padding after the last pixel is read and written back unchanged.
   for (int i = kW * kH; i < kW * kH + kTargetPad; ++i) CHECK(simd.iz[i] == 0.0f);
+}
+
+TEST_CASE("raster kernels: SIMD and portable box kernels write identical bits") {
+  box_kernels_match_portable(false);
+  if (avx512_available()) {
+    MESSAGE("AVX-512 box kernel tested too");
+    box_kernels_match_portable(true);
+  }
 }
 
 namespace {
@@ -186,7 +197,8 @@ TEST_CASE("raster kernels: the scanline walk covers exactly the pixels of the ex
     if (!random_big_triangle(rng, k % 5, &t)) continue;
     TestTarget scan;
     Counters c;
-    const Target ts = scan.view(k % 2 == 0);
+    // Portable, universal SIMD and (where the CPU has it) AVX-512 spans.
+    const Target ts = scan.view(k % 3 != 0, k % 3 == 2 && avx512_available());
     PreparedTriangle p;
     if (prepare(t, plane, 9, ts, &p)) {
       // Every third triangle is drawn in bands of rows, as a resumed walk.

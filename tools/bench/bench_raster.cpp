@@ -35,13 +35,14 @@ SE3 bench_pose(const Mesh& liver, double* coverage) {
 }
 
 std::vector<double> time_ours(const Mesh& liver, const SE3& T, int downscale, bool simd, int n,
-                              RasterStats* stats, double* coverage) {
+                              RasterStats* stats, double* coverage, bool allow_avx512 = true) {
   MeshRasterizer r;
   RasterConfig cfg;
   cfg.width = 1280;
   cfg.height = 720;
   cfg.downscale = downscale;
   cfg.use_simd = simd;
+  cfg.allow_avx512 = allow_avx512;
   std::vector<double> ms;
   if (!r.configure(liver, cfg).ok()) return ms;
   const Pinhole K = test::bench_pinhole();
@@ -186,7 +187,9 @@ int run(const Options& opt) {
   row.baseline_ms = time_baseline(liver, T, n, &base_coverage);
   row.note = describe(stats, coverage) + "; baseline coverage " +
              std::to_string(int(100.0 * base_coverage + 0.5)) + "%" +
-             (MeshRasterizer::simd_available() ? "; SIMD span kernel" : "; portable span kernel");
+             (MeshRasterizer::avx512_available() ? "; AVX-512 kernels (chosen at run time)"
+              : MeshRasterizer::simd_available() ? "; SIMD kernels"
+                                                 : "; portable kernels");
   report(opt, row);
   Row cold;
   cold.name = "raster 1280x720 interleaved";
@@ -194,6 +197,13 @@ int run(const Options& opt) {
   time_interleaved(liver, T, n, &cold);
   cold.note = "ours and the baseline alternate: buffers cold, as between the tracker's stages";
   report(opt, cold);
+  if (MeshRasterizer::avx512_available()) {
+    // The kernels a CPU without AVX-512 runs (SSE2 here), for comparison.
+    Row sse;
+    sse.name = "raster 1280x720 SSE2 kernels";
+    sse.samples_ms = time_ours(liver, T, 1, true, n, &stats, &coverage, false);
+    report(opt, sse);
+  }
   Row portable;
   portable.name = "raster 1280x720 portable kernel";
   portable.samples_ms = time_ours(liver, T, 1, false, n, &stats, &coverage);
