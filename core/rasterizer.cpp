@@ -173,12 +173,29 @@ void MeshRasterizer::order_for_locality(const Mesh& mesh) {
     keys[t] = (std::uint64_t{code} << 32) | static_cast<std::uint32_t>(t);
   }
   std::sort(keys.begin(), keys.end());
+  // Vertices renumbered in order of first use by the sorted triangles, so
+  // that the per-vertex arrays are read almost in sequence as well.
+  const std::size_t nv = mesh.x.size();
+  std::vector<std::int32_t> renumber(nv, -1);
+  std::int32_t next = 0;
   tri_.resize(mesh.tri.size());
   tri_id_.resize(static_cast<std::size_t>(n));
   for (int k = 0; k < n; ++k) {
     const auto t = static_cast<std::int32_t>(keys[k] & 0xFFFFFFFFu);
     tri_id_[k] = t;
-    for (int j = 0; j < 3; ++j) tri_[3 * k + j] = mesh.tri[3 * t + j];
+    for (int j = 0; j < 3; ++j) {
+      std::int32_t& v = renumber[static_cast<std::size_t>(mesh.tri[3 * t + j])];
+      if (v < 0) v = next++;
+      tri_[3 * k + j] = v;
+    }
+  }
+  for (std::int32_t& v : renumber)
+    if (v < 0) v = next++;  // vertices no triangle uses
+  for (std::size_t i = 0; i < nv; ++i) {
+    const auto v = static_cast<std::size_t>(renumber[i]);
+    model_x_[v] = mesh.x[i];
+    model_y_[v] = mesh.y[i];
+    model_z_[v] = mesh.z[i];
   }
 }
 
