@@ -533,6 +533,23 @@ ST_AVX512 void draw_box_avx512(const BoxSetup& b, const Target& target, Counters
   }
   counters->fragments += fragments;
 }
+
+// resolve_row, 16 pixels a step (IEEE division as in the others: the same
+// bits); the mask bytes from the covered lanes. Returns where it stopped.
+ST_AVX512 int resolve_row_avx512(float* depth, std::uint8_t* mask, int x0, int x1, int* covered) {
+  const __m512 one = _mm512_set1_ps(1.0f);
+  const __m512i all = _mm512_set1_epi32(-1);
+  int n = 0, x = x0;
+  for (; x + 15 <= x1; x += 16) {
+    const __m512 iz = _mm512_loadu_ps(depth + x);
+    const __mmask16 hit = _mm512_cmp_ps_mask(iz, _mm512_setzero_ps(), _CMP_GT_OS);
+    _mm512_storeu_ps(depth + x, _mm512_maskz_div_ps(hit, one, iz));
+    _mm512_mask_cvtepi32_storeu_epi8(mask + x, 0xFFFF, _mm512_maskz_mov_epi32(hit, all));
+    n += __builtin_popcount(static_cast<unsigned>(hit));
+  }
+  *covered += n;
+  return x;
+}
 #endif
 
 }  // namespace
@@ -548,8 +565,13 @@ bool avx512_available() {
 #endif
 }
 
-int resolve_row(float* depth, std::uint8_t* mask, int x0, int x1, bool use_simd) {
+int resolve_row(float* depth, std::uint8_t* mask, int x0, int x1, bool use_simd, bool use_avx512) {
   int covered = 0;
+#if ST_RASTER_AVX512
+  if (use_simd && use_avx512) x0 = resolve_row_avx512(depth, mask, x0, x1, &covered);
+#else
+  (void)use_avx512;
+#endif
 #if CV_SIMD
   if (use_simd) x0 = resolve_row_simd(depth, mask, x0, x1, &covered);
 #else

@@ -108,7 +108,8 @@ void rasterize(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t i
 // After the last triangle: turns 1/z into depth (mm, 0 stays 0) and writes
 // the mask (255 where covered, else 0) over columns x0..x1 of one row;
 // returns the covered pixel count. Bit-identical with and without SIMD.
-int resolve_row(float* depth, std::uint8_t* mask, int x0, int x1, bool use_simd);
+int resolve_row(float* depth, std::uint8_t* mask, int x0, int x1, bool use_simd,
+                bool use_avx512 = false);
 
 // True if the SIMD span kernel is compiled in (else the portable one runs).
 bool simd_enabled();

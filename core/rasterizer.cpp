@@ -113,6 +113,7 @@ Status MeshRasterizer::configure(const Mesh& mesh, const RasterConfig& config) {
       return make_error("rasteriser: vertex " + std::to_string(i) + " is not finite");
 
   config_ = config;
+  use_avx512_ = config.use_simd && config.allow_avx512 && raster::avx512_available();
   raster_width_ = config.width / config.downscale;
   raster_height_ = config.height / config.downscale;
   model_x_ = mesh.x;
@@ -225,7 +226,7 @@ void MeshRasterizer::resolve_rows(int y_first, int y_last) {
     if (x0 > x1) continue;
     const std::size_t row = static_cast<std::size_t>(y) * raster_width_;
     covered_pixels_ += raster::resolve_row(depth_buf_.data() + row, mask_buf_.data() + row, x0,
-                                           x1, config_.use_simd);
+                                           x1, config_.use_simd, use_avx512_);
   }
 }
 
@@ -238,7 +239,7 @@ raster::Target MeshRasterizer::target() {
   t.height = raster_height_;
   t.stride = raster_width_;
   t.use_simd = config_.use_simd;
-  t.use_avx512 = config_.use_simd && config_.allow_avx512 && raster::avx512_available();
+  t.use_avx512 = use_avx512_;
   t.dirty_x0 = dirty_x0_.data();
   t.dirty_x1 = dirty_x1_.data();
   return t;

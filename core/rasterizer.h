@@ -117,6 +117,7 @@ class MeshRasterizer {
   RasterStats stats_;
   bool configured_ = false;
   bool rendered_ = false;
+  bool use_avx512_ = false;  // the AVX-512 kernels (config and CPU permitting)
   int raster_width_ = 0, raster_height_ = 0;
 
   // The mesh, copied at configure().
