@@ -40,6 +40,19 @@ struct TestTarget {
   }
 };
 
+// Gives t the positive signed area the kernels require (swapping two
+// vertices); false if it has none (degenerate).
+bool orient_positive(FixedTriangle* t) {
+  const std::int64_t area =
+      (t->x[1] - t->x[0]) * (t->y[2] - t->y[0]) - (t->y[1] - t->y[0]) * (t->x[2] - t->x[0]);
+  if (area == 0) return false;
+  if (area < 0) {
+    std::swap(t->x[1], t->x[2]);
+    std::swap(t->y[1], t->y[2]);
+  }
+  return true;
+}
+
 // A random triangle with a pixel box under kSmallBoxPx, some of it off the
 // image, vertices on the pixel grid (aligned) or anywhere on the sub-pixel
 // grid; positive signed area as the kernels require. False if degenerate.
@@ -57,14 +70,7 @@ bool random_small_triangle(std::mt19937& rng, bool aligned, FixedTriangle* t) {
     t->x[i] = cx + dx;
     t->y[i] = cy + dy;
   }
-  const std::int64_t area =
-      (t->x[1] - t->x[0]) * (t->y[2] - t->y[0]) - (t->y[1] - t->y[0]) * (t->x[2] - t->x[0]);
-  if (area == 0) return false;
-  if (area < 0) {
-    std::swap(t->x[1], t->x[2]);
-    std::swap(t->y[1], t->y[2]);
-  }
-  return true;
+  return orient_positive(t);
 }
 
 DepthPlane test_plane() {
@@ -175,14 +181,7 @@ bool random_big_triangle(std::mt19937& rng, int kind, FixedTriangle* t) {
     t->x[2] = (t->x[0] + t->x[1]) / 2 + (px(rng) % 300);
     t->y[2] = (t->y[0] + t->y[1]) / 2 + (px(rng) % 300);
   }
-  const std::int64_t area =
-      (t->x[1] - t->x[0]) * (t->y[2] - t->y[0]) - (t->y[1] - t->y[0]) * (t->x[2] - t->x[0]);
-  if (area == 0) return false;
-  if (area < 0) {
-    std::swap(t->x[1], t->x[2]);
-    std::swap(t->y[1], t->y[2]);
-  }
-  return true;
+  return orient_positive(t);
 }
 
 }  // namespace
