@@ -458,19 +458,23 @@ ST_AVX512 inline __m512 clamp_avx512(__m512 v, __m512 lo, __m512 hi) {
 // The span kernel, 16 pixels a step: the same arithmetic as the others
 // (a separate multiply and add: this file is built with -ffp-contract=off;
 // x - x0 as an exact float), lanes past x1 masked off in the loads and the
-// stores.
+// stores. walk_rows' fill: a struct rather than a lambda, so that its call
+// operator carries the target too.
 struct FillSpanAvx512 {
   __m512 lane, step, gx, iz_min, iz_max;
   __m512i id;
-  ST_AVX512 FillSpanAvx512(float gx_in, float iz_min_in, float iz_max_in, std::int32_t id_in) {
+  const Target* target;
+  ST_AVX512 FillSpanAvx512(const Span& s, const Target* target_in) : target(target_in) {
     lane = _mm512_setr_ps(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     step = _mm512_set1_ps(16.0f);
-    gx = _mm512_set1_ps(gx_in);
-    iz_min = _mm512_set1_ps(iz_min_in);
-    iz_max = _mm512_set1_ps(iz_max_in);
-    id = _mm512_set1_epi32(id_in);
+    gx = _mm512_set1_ps(s.gx);
+    iz_min = _mm512_set1_ps(s.iz_min);
+    iz_max = _mm512_set1_ps(s.iz_max);
+    id = _mm512_set1_epi32(s.id);
   }
-  ST_AVX512 inline void operator()(const Span& s, float* iz_buf, std::int32_t* ids) const {
+  ST_AVX512 inline void operator()(const Span& s, std::ptrdiff_t row) const {
+    float* iz_buf = target->depth + row;
+    std::int32_t* ids = target->triangle_id + row;
     const __m512 iz0 = _mm512_set1_ps(s.iz0);
     __m512 k = lane;
     for (int x = s.x0; x <= s.x1; x += 16, k = _mm512_add_ps(k, step)) {
@@ -485,20 +489,9 @@ struct FillSpanAvx512 {
   }
 };
 
-// walk_rows' fill for the AVX-512 span kernel (a struct rather than a
-// lambda, so that its call operator carries the target too).
-struct RowFillAvx512 {
-  const FillSpanAvx512* fill;
-  const Target* target;
-  ST_AVX512 inline void operator()(const Span& span, std::ptrdiff_t row) const {
-    (*fill)(span, target->depth + row, target->triangle_id + row);
-  }
-};
-
 ST_AVX512 void draw_rows_avx512(PreparedTriangle* tri, int y_stop, const Target& target,
                                 Span* s, Counters* counters) {
-  const FillSpanAvx512 fill(s->gx, s->iz_min, s->iz_max, s->id);
-  walk_rows(tri, y_stop, target, s, counters, RowFillAvx512{&fill, &target});
+  walk_rows(tri, y_stop, target, s, counters, FillSpanAvx512(*s, &target));
 }
 
 // The box kernel, one 16-column step a row (the box is at most

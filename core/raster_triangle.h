@@ -107,9 +107,10 @@ void rasterize(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t i
 
 // After the last triangle: turns 1/z into depth (mm, 0 stays 0) and writes
 // the mask (255 where covered, else 0) over columns x0..x1 of one row;
-// returns the covered pixel count. Bit-identical with and without SIMD.
+// returns the covered pixel count. Bit-identical with and without SIMD;
+// use_avx512 (with use_simd) takes the AVX-512 form where it is compiled in.
 int resolve_row(float* depth, std::uint8_t* mask, int x0, int x1, bool use_simd,
-                bool use_avx512 = false);
+                bool use_avx512);
 
 // True if the SIMD span kernel is compiled in (else the portable one runs).
 bool simd_enabled();
