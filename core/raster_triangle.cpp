@@ -3,11 +3,8 @@
 #include <algorithm>
 #include <opencv2/core/hal/intrin.hpp>
 
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#define ST_RASTER_AVX512 1
+#if ST_RASTER_AVX512
 #include <immintrin.h>
-#else
-#define ST_RASTER_AVX512 0
 #endif
 
 namespace st::raster {
@@ -447,8 +444,6 @@ void draw_box_simd(const BoxSetup& b, const Target& target, Counters* counters) 
 #endif
 
 #if ST_RASTER_AVX512
-#define ST_AVX512 __attribute__((target("avx512f")))
-
 // min(max(v, lo), hi) in every lane (the zero-masking forms with a full
 // mask: GCC 12's unmasked ones warn about their undefined source operand).
 ST_AVX512 inline __m512 clamp_avx512(__m512 v, __m512 lo, __m512 hi) {

@@ -7,6 +7,7 @@
 #include "core/capacity.h"
 #include "core/mask_morphology.h"
 #include "core/raster_clip.h"
+#include "core/raster_cull.h"
 #include "core/raster_triangle.h"
 
 namespace st {
@@ -17,13 +18,10 @@ using raster::ClipPoint;
 using raster::kSubpixelBits;
 using raster::kSubpixelScale;
 
-// Vertex outcode: bit 0 behind the near plane, bits 1-4 beyond the guard
-// band (left, right, top, bottom; these bit positions are also the clip
-// plane indices), bits 5-8 outside the image by more than one pixel.
-constexpr unsigned kNear = 1u << 0;
-constexpr unsigned kGuardShift = 1, kRejectShift = 5;
-constexpr unsigned kClipMask = 0x1Fu;                             // near + guard band
-constexpr unsigned kRejectMask = kNear | (0xFu << kRejectShift);  // trivially outside
+// Vertex outcodes: see raster_cull.h.
+constexpr unsigned kNear = raster::kOutNear;
+constexpr unsigned kGuardShift = raster::kOutGuardShift, kRejectShift = raster::kOutRejectShift;
+constexpr unsigned kClipMask = raster::kOutClipMask;
 constexpr int kBufferPad = raster::kTargetPad;
 
 // Planes through the camera centre with lo <= u <= hi and lo_v <= v <= hi_v
@@ -71,13 +69,6 @@ bool depth_plane(const ClipPoint& p0, const ClipPoint& p1, const ClipPoint& p2, 
   plane->iz_min = static_cast<float>(1.0 / z_max);
   plane->iz_max = static_cast<float>(1.0 / z_min);
   return true;
-}
-
-// Some pixel centre (integer coordinates) inside the snapped bounding box?
-bool covers_pixel_centre(std::int64_t lo, std::int64_t hi, int size) {
-  const std::int64_t first = std::max<std::int64_t>(0, (lo + kSubpixelScale - 1) >> kSubpixelBits);
-  const std::int64_t last = std::min<std::int64_t>(size - 1, hi >> kSubpixelBits);
-  return first <= last;
 }
 
 }  // namespace
@@ -132,7 +123,7 @@ Status MeshRasterizer::configure(const Mesh& mesh, const RasterConfig& config) {
   mask_buf_.assign(pixels + kBufferPad, 0);
   dirty_x0_.assign(raster_height_, raster_width_);
   dirty_x1_.assign(raster_height_, -1);
-  visible_bits_.assign((tri_.size() / 3 + 63) / 64, 0);
+  visible_bits_.assign((tri_id_.size() + 63) / 64, 0);
   morph_.configure(raster_width_, raster_height_);
   covered_pixels_ = 0;
   stats_ = {};
@@ -179,7 +170,7 @@ void MeshRasterizer::order_for_locality(const Mesh& mesh) {
   const std::size_t nv = mesh.x.size();
   std::vector<std::int32_t> renumber(nv, -1);
   std::int32_t next = 0;
-  tri_.resize(mesh.tri.size());
+  for (std::vector<std::int32_t>& c : corner_) c.resize(static_cast<std::size_t>(n));
   tri_id_.resize(static_cast<std::size_t>(n));
   for (int k = 0; k < n; ++k) {
     const auto t = static_cast<std::int32_t>(keys[k] & 0xFFFFFFFFu);
@@ -187,7 +178,7 @@ void MeshRasterizer::order_for_locality(const Mesh& mesh) {
     for (int j = 0; j < 3; ++j) {
       std::int32_t& v = renumber[static_cast<std::size_t>(mesh.tri[3 * t + j])];
       if (v < 0) v = next++;
-      tri_[3 * k + j] = v;
+      corner_[j][k] = v;
     }
   }
   for (std::int32_t& v : renumber)
@@ -263,9 +254,32 @@ void MeshRasterizer::render(const SE3& T_camera_model, const Pinhole& K_full) {
   transform_vertices();
   const raster::Target tgt = target();
   raster::Counters counters;
-  const int n = static_cast<int>(tri_.size() / 3);
+  const int n = triangle_count();
   clear_rows(0, raster_height_ - 1);
-  for (int t = 0; t < n; ++t) draw_triangle(t, tgt, &counters);
+  raster::CullInput cull;
+  cull.v0 = corner_[0].data();
+  cull.v1 = corner_[1].data();
+  cull.v2 = corner_[2].data();
+  cull.outcode = outcode_.data();
+  cull.snap_x = snap_x_.data();
+  cull.snap_y = snap_y_.data();
+  cull.width = tgt.width;
+  cull.height = tgt.height;
+  cull.cull_backfaces = config_.cull_backfaces;
+  // The trivial tests a batch at a time, then the survivors in draw order.
+  for (int t0 = 0; t0 < n; t0 += raster::kCullBatch) {
+    raster::CullBatch batch;
+    raster::classify(cull, t0, std::min(raster::kCullBatch, n - t0), use_avx512_, &batch);
+    stats_.triangles_outside += batch.outside;
+    stats_.triangles_culled += batch.culled;
+    for (std::uint32_t bits = batch.draw | batch.clip; bits != 0; bits &= bits - 1) {
+      const int k = __builtin_ctz(bits);
+      if (batch.clip >> k & 1u)
+        draw_clipped(t0 + k, tgt, &counters);
+      else
+        draw_snapped(t0 + k, (batch.front >> k & 1u) != 0, tgt, &counters);
+    }
+  }
   resolve_rows(0, raster_height_ - 1);
   stats_.fragments = counters.fragments;
 }
@@ -319,32 +333,17 @@ void MeshRasterizer::transform_vertices() {
       for (unsigned k = 0; k < 4; ++k)
         if (reject[k].distance(p) < 0) code |= 1u << (kRejectShift + k);
     }
-    outcode_[i] = static_cast<std::uint16_t>(code);
+    outcode_[i] = code;
   }
 }
 
-void MeshRasterizer::draw_triangle(int t, const raster::Target& tgt, raster::Counters* counters) {
-  const std::int32_t i0 = tri_[3 * t], i1 = tri_[3 * t + 1], i2 = tri_[3 * t + 2];
-  const unsigned c0 = outcode_[i0], c1 = outcode_[i1], c2 = outcode_[i2];
-  if (c0 & c1 & c2 & kRejectMask) {
-    ++stats_.triangles_outside;
-    return;
-  }
-  if ((c0 | c1 | c2) & kClipMask) {
-    draw_clipped(t, tgt, counters);
-    return;
-  }
+// A triangle that passed the trivial tests (raster::classify): snapped,
+// inside the guard band, facing as required, covering a pixel centre.
+void MeshRasterizer::draw_snapped(int t, bool front, const raster::Target& tgt,
+                                  raster::Counters* counters) {
+  const std::int32_t i0 = corner_[0][t], i1 = corner_[1][t], i2 = corner_[2][t];
   const std::int64_t x0 = snap_x_[i0], y0 = snap_y_[i0], x1 = snap_x_[i1], y1 = snap_y_[i1],
                      x2 = snap_x_[i2], y2 = snap_y_[i2];
-  const std::int64_t area = (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0);
-  // Image y points down: a face seen from outside has negative signed area.
-  const bool front = area < 0;
-  if (area == 0 || (!front && config_.cull_backfaces) ||
-      !covers_pixel_centre(std::min({x0, x1, x2}), std::max({x0, x1, x2}), tgt.width) ||
-      !covers_pixel_centre(std::min({y0, y1, y2}), std::max({y0, y1, y2}), tgt.height)) {
-    ++stats_.triangles_culled;
-    return;
-  }
   const ClipPoint p0{cam_x_[i0], cam_y_[i0], cam_z_[i0]}, p1{cam_x_[i1], cam_y_[i1], cam_z_[i1]},
       p2{cam_x_[i2], cam_y_[i2], cam_z_[i2]};
   raster::DepthPlane plane;
@@ -365,7 +364,7 @@ void MeshRasterizer::draw_triangle(int t, const raster::Target& tgt, raster::Cou
 // convex remainder as a fan (its inner edges are shared exactly, so the fill
 // rule covers every pixel once). All pieces use the original triangle's plane.
 void MeshRasterizer::draw_clipped(int t, const raster::Target& tgt, raster::Counters* counters) {
-  const std::int32_t i0 = tri_[3 * t], i1 = tri_[3 * t + 1], i2 = tri_[3 * t + 2];
+  const std::int32_t i0 = corner_[0][t], i1 = corner_[1][t], i2 = corner_[2][t];
   ClipPoint poly[raster::kMaxClipVertices] = {{cam_x_[i0], cam_y_[i0], cam_z_[i0]},
                                               {cam_x_[i1], cam_y_[i1], cam_z_[i1]},
                                               {cam_x_[i2], cam_y_[i2], cam_z_[i2]}};

@@ -104,7 +104,7 @@ class MeshRasterizer {
   void clear_rows(int y_first, int y_last);
   raster::Target target();
   void transform_vertices();
-  void draw_triangle(int t, const raster::Target& tgt, raster::Counters* counters);
+  void draw_snapped(int t, bool front, const raster::Target& tgt, raster::Counters* counters);
   void draw_clipped(int t, const raster::Target& tgt, raster::Counters* counters);
   void emit(const raster::FixedTriangle& ft, const raster::DepthPlane& plane, std::int32_t id,
             const raster::Target& tgt, raster::Counters* counters);
@@ -122,12 +122,14 @@ class MeshRasterizer {
 
   // The mesh, copied at configure().
   std::vector<float> model_x_, model_y_, model_z_;
-  std::vector<std::int32_t> tri_;     // in draw order (see order_for_locality)
+  // corner_[j][k]: vertex j of the k-th triangle in draw order (see
+  // order_for_locality), after the vertices' renumbering.
+  std::vector<std::int32_t> corner_[3];
   std::vector<std::int32_t> tri_id_;  // draw order -> the mesh's triangle id
   // Per render, per vertex: camera frame (mm), frustum outcode, snapped
   // pixel position (1/4096 px; valid where the outcode has no clip bit).
   std::vector<double> cam_x_, cam_y_, cam_z_;
-  std::vector<std::uint16_t> outcode_;
+  std::vector<std::uint32_t> outcode_;  // raster_cull.h's bits
   std::vector<std::int32_t> snap_x_, snap_y_;
   // Output buffers, stride = raster width, padded at the end (SIMD groups).
   std::vector<float> depth_buf_;
