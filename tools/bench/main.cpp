@@ -47,20 +47,25 @@ static std::string json_escape(const std::string& s) {
 }
 
 void report(const Options& opt, const Row& row) {
-  const double med = median(row.samples_ms), p99 = percentile(row.samples_ms, 99.0);
+  // p10 next to the median: on a shared, noisy host the fast tail moves
+  // less between runs than the median (A/B comparisons).
+  const double med = median(row.samples_ms), p99 = percentile(row.samples_ms, 99.0),
+               p10 = percentile(row.samples_ms, 10.0);
   const bool has_base = !row.baseline.empty() && !row.baseline_ms.empty();
   const double base_med = has_base ? median(row.baseline_ms) : std::nan("");
   if (opt.json) {
-    std::printf("{\"bench\": \"%s\", \"median_ms\": %.4f, \"p99_ms\": %.4f, \"samples\": %zu",
-                json_escape(row.name).c_str(), med, p99, row.samples_ms.size());
+    std::printf(
+        "{\"bench\": \"%s\", \"median_ms\": %.4f, \"p99_ms\": %.4f, \"p10_ms\": %.4f, "
+        "\"samples\": %zu",
+        json_escape(row.name).c_str(), med, p99, p10, row.samples_ms.size());
     if (has_base)
       std::printf(", \"baseline\": \"%s\", \"baseline_median_ms\": %.4f, \"speedup\": %.3f",
                   json_escape(row.baseline).c_str(), base_med, base_med / med);
     if (!row.note.empty()) std::printf(", \"note\": \"%s\"", json_escape(row.note).c_str());
     std::printf("}\n");
   } else {
-    std::printf("%-34s median %9.3f ms   p99 %9.3f ms   (n=%zu)\n", row.name.c_str(), med, p99,
-                row.samples_ms.size());
+    std::printf("%-34s median %9.3f ms   p99 %9.3f ms   p10 %9.3f ms   (n=%zu)\n",
+                row.name.c_str(), med, p99, p10, row.samples_ms.size());
     if (has_base)
       std::printf("  %-32s median %9.3f ms   -> speedup %.2fx\n", row.baseline.c_str(), base_med,
                   base_med / med);
