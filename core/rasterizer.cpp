@@ -463,13 +463,16 @@ void MeshRasterizer::morph_mask(int k, ImageView<std::uint8_t> out) const {
 int MeshRasterizer::visible_triangles(std::int32_t* out, int capacity) const {
   if (!rendered_) return 0;
   std::fill(visible_bits_.begin(), visible_bits_.end(), 0);
-  const std::size_t pixels = static_cast<std::size_t>(raster_width_) * raster_height_;
+  // Only the columns the render wrote (the rest holds -1).
   std::int32_t last = -1;
-  for (std::size_t i = 0; i < pixels; ++i) {
-    const std::int32_t id = id_buf_[i];
-    if (id == last || id < 0) continue;
-    last = id;
-    visible_bits_[static_cast<std::size_t>(id) >> 6] |= std::uint64_t{1} << (id & 63);
+  for (int y = 0; y < raster_height_; ++y) {
+    const std::int32_t* row = id_buf_.data() + static_cast<std::size_t>(y) * raster_width_;
+    for (int x = dirty_x0_[y]; x <= dirty_x1_[y]; ++x) {
+      const std::int32_t id = row[x];
+      if (id == last || id < 0) continue;
+      last = id;
+      visible_bits_[static_cast<std::size_t>(id) >> 6] |= std::uint64_t{1} << (id & 63);
+    }
   }
   int count = 0;
   for (std::size_t w = 0; w < visible_bits_.size(); ++w) {

@@ -182,14 +182,18 @@ TEST_CASE("raster: visible_triangles is the sorted set of ids in the buffer") {
   const Mesh liver = liver_mesh();
   MeshRasterizer r;
   REQUIRE(r.configure(liver, config_1280()).ok());
-  r.render(look_at(bbox_centre(liver), Vec3(0.5, 0.5, -1), 330, 2.0), bench_pinhole());
-  std::set<std::int32_t> expected;
-  const auto ids = r.triangle_id();
-  for (int y = 0; y < ids.height; ++y)
-    for (int x = 0; x < ids.width; ++x)
-      if (ids(x, y) >= 0) expected.insert(ids(x, y));
-  REQUIRE(expected.size() > 1000);
+  const auto ids_in_buffer = [&r] {
+    std::set<std::int32_t> ids;
+    const auto buf = r.triangle_id();
+    for (int y = 0; y < buf.height; ++y)
+      for (int x = 0; x < buf.width; ++x)
+        if (buf(x, y) >= 0) ids.insert(buf(x, y));
+    return ids;
+  };
   std::vector<std::int32_t> out(liver.triangle_count(), -5);
+  r.render(look_at(bbox_centre(liver), Vec3(0.5, 0.5, -1), 330, 2.0), bench_pinhole());
+  const std::set<std::int32_t> expected = ids_in_buffer();
+  REQUIRE(expected.size() > 1000);
   const int n = r.visible_triangles(out.data(), static_cast<int>(out.size()));
   REQUIRE(n == static_cast<int>(expected.size()));
   CHECK(std::equal(expected.begin(), expected.end(), out.begin()));
@@ -197,6 +201,16 @@ TEST_CASE("raster: visible_triangles is the sorted set of ids in the buffer") {
   std::vector<std::int32_t> few(10, -5);
   CHECK(r.visible_triangles(few.data(), 10) == n);
   CHECK(std::equal(few.begin(), few.end(), out.begin()));
+  // A second render from elsewhere (part of the organ, off-centre): what
+  // only the first one showed is gone, what it shows is all there.
+  r.render(look_at(bbox_centre(liver) + Vec3(40, 20, 0), Vec3(-1, 0.3, 0.2), 150, 0.5),
+           bench_pinhole());
+  const std::set<std::int32_t> partial = ids_in_buffer();
+  REQUIRE(partial.size() > 100);
+  REQUIRE(partial.size() < expected.size());
+  CHECK(r.visible_triangles(out.data(), static_cast<int>(out.size())) ==
+        static_cast<int>(partial.size()));
+  CHECK(std::equal(partial.begin(), partial.end(), out.begin()));
 }
 
 TEST_CASE("raster: bad configuration and bad input are refused or give an empty render") {
