@@ -18,6 +18,42 @@ bool covers_pixel_centre(std::int32_t lo, std::int32_t hi, int size) {
   return first <= last;
 }
 
+inline double plane_distance(const double* p, double x, double y, double z) {
+  return p[0] * x + p[1] * y + p[2] * z + p[3];
+}
+
+void transform_portable(const VertexPass& c, const VertexArrays& v) {
+  for (int i = 0; i < v.count; ++i) {
+    const double mx = v.model_x[i], my = v.model_y[i], mz = v.model_z[i];
+    const double x = c.R[0] * mx + c.R[1] * my + c.R[2] * mz + c.t[0];
+    const double y = c.R[3] * mx + c.R[4] * my + c.R[5] * mz + c.t[1];
+    const double z = c.R[6] * mx + c.R[7] * my + c.R[8] * mz + c.t[2];
+    v.x[i] = x;
+    v.y[i] = y;
+    v.z[i] = z;
+    unsigned code = 0;
+    if (z >= c.near_mm) {
+      const double inv_z = 1.0 / z;
+      const double u = c.fx * x * inv_z + c.cx, w = c.fy * y * inv_z + c.cy;
+      code |= (u < c.guard_lo) << kOutGuardShift | (u > c.guard_hi_u) << (kOutGuardShift + 1) |
+              (w < c.guard_lo) << (kOutGuardShift + 2) | (w > c.guard_hi_v) << (kOutGuardShift + 3);
+      code |= (u < c.in_lo) << kOutRejectShift | (u > c.in_hi_u) << (kOutRejectShift + 1) |
+              (w < c.in_lo) << (kOutRejectShift + 2) | (w > c.in_hi_v) << (kOutRejectShift + 3);
+      if (!(code & kOutClipMask)) {
+        v.snap_x[i] = snap(u);
+        v.snap_y[i] = snap(w);
+      }
+    } else {
+      // Behind the near plane: the side tests still hold as half-spaces
+      // through the eye, which is all the trivial reject needs.
+      code = kOutNear;
+      for (unsigned k = 0; k < 4; ++k)
+        if (plane_distance(c.reject_plane[k], x, y, z) < 0) code |= 1u << (kOutRejectShift + k);
+    }
+    v.outcode[i] = code;
+  }
+}
+
 void classify_portable(const CullInput& in, int t0, int n, CullBatch* out) {
   for (int k = 0; k < n; ++k) {
     const int t = t0 + k;
@@ -96,6 +132,96 @@ ST_AVX512 inline __mmask16 covers_avx512(__m512i a, __m512i b, __m512i c, int si
   return _mm512_cmple_epi32_mask(first, last);
 }
 
+// snap() in 8 double lanes: truncation, then the half-away-from-zero
+// correction in exact integer-valued doubles; the result as int32 (exact:
+// |px| < 2^19 where it is kept, see kGuardBandPx).
+ST_AVX512 inline __m256i snap_avx512(__m512d px) {
+  const __m512d s = _mm512_mul_pd(px, _mm512_set1_pd(static_cast<double>(kSubpixelScale)));
+  const __m512d i = _mm512_cvtepi32_pd(_mm512_cvttpd_epi32(s));
+  const __m512d f = _mm512_sub_pd(s, i);
+  const __m512d one = _mm512_set1_pd(1.0);
+  __m512d r = _mm512_mask_add_pd(i, _mm512_cmp_pd_mask(f, _mm512_set1_pd(0.5), _CMP_GE_OQ), i, one);
+  r = _mm512_mask_sub_pd(r, _mm512_cmp_pd_mask(f, _mm512_set1_pd(-0.5), _CMP_LE_OQ), r, one);
+  return _mm512_cvttpd_epi32(r);
+}
+
+// Sets bit in the lanes of code selected by m (8 lanes, in 16-lane ops).
+ST_AVX512 inline __m512i set_bit(__m512i code, __mmask8 m, unsigned bit) {
+  return _mm512_mask_or_epi32(code, m, code, _mm512_set1_epi32(static_cast<std::int32_t>(bit)));
+}
+
+ST_AVX512 inline __m512d row_times(const double* r, __m512d mx, __m512d my, __m512d mz, double t) {
+  return _mm512_add_pd(
+      _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(r[0]), mx),
+                                  _mm512_mul_pd(_mm512_set1_pd(r[1]), my)),
+                    _mm512_mul_pd(_mm512_set1_pd(r[2]), mz)),
+      _mm512_set1_pd(t));
+}
+
+// transform_portable, 8 vertices a step: the same operations in the same
+// order (this file is built without floating-point contraction), so the
+// same bits; both branches of the near-plane test computed, then selected.
+ST_AVX512 void transform_avx512(const VertexPass& c, const VertexArrays& v) {
+  for (int i = 0; i < v.count; i += 8) {
+    const int left = v.count - i;
+    const __mmask8 live = left >= 8 ? __mmask8(0xFF) : __mmask8((1u << left) - 1);
+    const __m512d mx = _mm512_cvtps_pd(_mm512_castps512_ps256(
+        _mm512_maskz_loadu_ps(live, v.model_x + i)));
+    const __m512d my = _mm512_cvtps_pd(_mm512_castps512_ps256(
+        _mm512_maskz_loadu_ps(live, v.model_y + i)));
+    const __m512d mz = _mm512_cvtps_pd(_mm512_castps512_ps256(
+        _mm512_maskz_loadu_ps(live, v.model_z + i)));
+    const __m512d x = row_times(c.R, mx, my, mz, c.t[0]);
+    const __m512d y = row_times(c.R + 3, mx, my, mz, c.t[1]);
+    const __m512d z = row_times(c.R + 6, mx, my, mz, c.t[2]);
+    _mm512_mask_storeu_pd(v.x + i, live, x);
+    _mm512_mask_storeu_pd(v.y + i, live, y);
+    _mm512_mask_storeu_pd(v.z + i, live, z);
+    const __mmask8 ahead = _mm512_mask_cmp_pd_mask(live, z, _mm512_set1_pd(c.near_mm), _CMP_GE_OQ);
+    const __mmask8 behind = live & static_cast<__mmask8>(~ahead);
+    // In front of the near plane: project, guard band and reject bits.
+    const __m512d inv_z = _mm512_maskz_div_pd(ahead, _mm512_set1_pd(1.0), z);
+    const __m512d u = _mm512_add_pd(
+        _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(c.fx), x), inv_z), _mm512_set1_pd(c.cx));
+    const __m512d w = _mm512_add_pd(
+        _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(c.fy), y), inv_z), _mm512_set1_pd(c.cy));
+    __m512i code = _mm512_setzero_si512();
+    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, u, _mm512_set1_pd(c.guard_lo), _CMP_LT_OQ),
+                   1u << kOutGuardShift);
+    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, u, _mm512_set1_pd(c.guard_hi_u), _CMP_GT_OQ),
+                   1u << (kOutGuardShift + 1));
+    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, w, _mm512_set1_pd(c.guard_lo), _CMP_LT_OQ),
+                   1u << (kOutGuardShift + 2));
+    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, w, _mm512_set1_pd(c.guard_hi_v), _CMP_GT_OQ),
+                   1u << (kOutGuardShift + 3));
+    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, u, _mm512_set1_pd(c.in_lo), _CMP_LT_OQ),
+                   1u << kOutRejectShift);
+    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, u, _mm512_set1_pd(c.in_hi_u), _CMP_GT_OQ),
+                   1u << (kOutRejectShift + 1));
+    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, w, _mm512_set1_pd(c.in_lo), _CMP_LT_OQ),
+                   1u << (kOutRejectShift + 2));
+    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, w, _mm512_set1_pd(c.in_hi_v), _CMP_GT_OQ),
+                   1u << (kOutRejectShift + 3));
+    // Behind it: near, and the reject planes through the eye.
+    code = set_bit(code, behind, kOutNear);
+    for (unsigned k = 0; k < 4; ++k) {
+      const double* p = c.reject_plane[k];
+      const __m512d d = _mm512_add_pd(
+          _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(p[0]), x),
+                                      _mm512_mul_pd(_mm512_set1_pd(p[1]), y)),
+                        _mm512_mul_pd(_mm512_set1_pd(p[2]), z)),
+          _mm512_set1_pd(p[3]));
+      code = set_bit(code, _mm512_mask_cmp_pd_mask(behind, d, _mm512_setzero_pd(), _CMP_LT_OQ),
+                     1u << (kOutRejectShift + k));
+    }
+    _mm512_mask_storeu_epi32(v.outcode + i, live, code);
+    const __mmask8 snapped = ahead & static_cast<__mmask8>(_mm512_mask_testn_epi32_mask(
+                                         0xFF, code, _mm512_set1_epi32(kOutClipMask)));
+    _mm512_mask_storeu_epi32(v.snap_x + i, snapped, _mm512_castsi256_si512(snap_avx512(u)));
+    _mm512_mask_storeu_epi32(v.snap_y + i, snapped, _mm512_castsi256_si512(snap_avx512(w)));
+  }
+}
+
 // classify_portable for 16 triangles at once: the vertex data gathered
 // lane by lane, the same integer tests.
 ST_AVX512 void classify_avx512(const CullInput& in, int t0, int n, CullBatch* out) {
@@ -134,6 +260,18 @@ ST_AVX512 void classify_avx512(const CullInput& in, int t0, int n, CullBatch* ou
 #endif
 
 }  // namespace
+
+void transform_vertices(const VertexPass& pass, const VertexArrays& v, bool use_avx512) {
+#if ST_RASTER_AVX512
+  if (use_avx512) {
+    transform_avx512(pass, v);
+    return;
+  }
+#else
+  (void)use_avx512;
+#endif
+  transform_portable(pass, v);
+}
 
 void classify(const CullInput& in, int t0, int n, bool use_avx512, CullBatch* out) {
   *out = {};

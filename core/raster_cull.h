@@ -1,13 +1,17 @@
-// The rasteriser's per-triangle tests, 16 triangles at a time: frustum
-// reject, clip needed, orientation (back-face culling), zero area and
-// "covers no pixel centre", from the per-vertex outcodes and snapped
-// positions of one render. Most of a closed organ's triangles end here
-// (back-facing or outside the view), so these tests run for every triangle
-// while the set-up runs only for those drawn. Internal to the rasteriser
-// (core/rasterizer.cpp); no allocation.
+// The rasteriser's per-vertex and per-triangle work before any set-up:
+// every vertex into the camera frame with its frustum outcode and snapped
+// image position, then the per-triangle tests 16 triangles at a time
+// (frustum reject, clip needed, orientation (back-face culling), zero area,
+// "covers no pixel centre"). Most of a closed organ's triangles end there
+// (back-facing or outside the view), so this runs for every vertex and
+// triangle while the set-up runs only for those drawn. Internal to the
+// rasteriser (core/rasterizer.cpp); no allocation. Each has a portable and
+// an AVX-512 form (chosen at run time) that give the same bits.
 #pragma once
 
 #include <cstdint>
+
+#include "core/raster_triangle.h"
 
 namespace st::raster {
 
@@ -18,6 +22,48 @@ inline constexpr unsigned kOutNear = 1u << 0;
 inline constexpr unsigned kOutGuardShift = 1, kOutRejectShift = 5;
 inline constexpr unsigned kOutClipMask = 0x1Fu;                                // near + guard band
 inline constexpr unsigned kOutRejectMask = kOutNear | (0xFu << kOutRejectShift);  // outside
+
+// Round half away from zero to the sub-pixel grid (1/kSubpixelScale px),
+// without libm calls. |px| < 2^19 (the guard band) wherever it is kept.
+inline std::int32_t snap(double px) {
+  const double s = px * static_cast<double>(kSubpixelScale);
+  const auto i = static_cast<std::int64_t>(s);
+  const double f = s - static_cast<double>(i);
+  return static_cast<std::int32_t>(i + (f >= 0.5) - (f <= -0.5));
+}
+
+// The per-render constants of the vertex pass: camera <- model (row-major
+// R, t), the raster's pinhole, the near plane, and the bounds of the guard
+// band and of the reject test (u, v in raster pixels). Behind the near
+// plane the reject bits come from the four planes through the eye and the
+// reject bounds instead (outside where a x + b y + c z + d < 0 in the
+// camera frame), in the order left, right, top, bottom.
+struct VertexPass {
+  double R[9] = {}, t[3] = {};
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+  double near_mm = 0;
+  double guard_lo = 0, guard_hi_u = 0, guard_hi_v = 0;
+  double in_lo = 0, in_hi_u = 0, in_hi_v = 0;
+  double reject_plane[4][4] = {};
+};
+
+// Model-frame vertices in, camera-frame vertices, outcodes and snapped
+// positions out (the snapped ones written only where the outcode has no
+// clip bit). count entries each.
+struct VertexArrays {
+  const float* model_x = nullptr;
+  const float* model_y = nullptr;
+  const float* model_z = nullptr;
+  double* x = nullptr;
+  double* y = nullptr;
+  double* z = nullptr;
+  std::uint32_t* outcode = nullptr;
+  std::int32_t* snap_x = nullptr;
+  std::int32_t* snap_y = nullptr;
+  int count = 0;
+};
+
+void transform_vertices(const VertexPass& pass, const VertexArrays& v, bool use_avx512);
 
 // Triangles in draw order as three vertex-index arrays, and the vertices'
 // outcodes and snapped positions (1/4096 px; read only where the outcode

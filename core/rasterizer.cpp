@@ -18,10 +18,7 @@ using raster::ClipPoint;
 using raster::kSubpixelBits;
 using raster::kSubpixelScale;
 
-// Vertex outcodes: see raster_cull.h.
-constexpr unsigned kNear = raster::kOutNear;
-constexpr unsigned kGuardShift = raster::kOutGuardShift, kRejectShift = raster::kOutRejectShift;
-constexpr unsigned kClipMask = raster::kOutClipMask;
+constexpr unsigned kClipMask = raster::kOutClipMask;  // vertex outcodes: see raster_cull.h
 constexpr int kBufferPad = raster::kTargetPad;
 
 // Planes through the camera centre with lo <= u <= hi and lo_v <= v <= hi_v
@@ -39,14 +36,6 @@ void clip_planes(const Pinhole& K, double near_mm, ClipPlane* out) {
   out[0] = {0, 0, 1, -near_mm};
   const double g = raster::kGuardBandPx;
   side_planes(K, -g, K.width - 1 + g, -g, K.height - 1 + g, out + 1);
-}
-
-// Round half away from zero to the sub-pixel grid, without libm calls.
-inline std::int32_t snap(double px) {
-  const double s = px * static_cast<double>(kSubpixelScale);
-  const auto i = static_cast<std::int64_t>(s);
-  const double f = s - static_cast<double>(i);
-  return static_cast<std::int32_t>(i + (f >= 0.5) - (f <= -0.5));
 }
 
 // 1/z of the triangle's plane is affine in the pixel coordinates: with
@@ -299,42 +288,43 @@ void MeshRasterizer::transform_vertices() {
   const Mat3& R = T_camera_model_.rotation();
   const Vec3& t = T_camera_model_.translation();
   const Pinhole& K = camera_;
-  const double near_mm = config_.near_mm, g = raster::kGuardBandPx;
-  const double guard_lo = -g, guard_hi_u = K.width - 1 + g, guard_hi_v = K.height - 1 + g;
-  const double in_lo = -1.0, in_hi_u = K.width, in_hi_v = K.height;
-  ClipPlane reject[4];
-  side_planes(K, in_lo, in_hi_u, in_lo, in_hi_v, reject);
-  const std::size_t nv = model_x_.size();
-  for (std::size_t i = 0; i < nv; ++i) {
-    const double mx = model_x_[i], my = model_y_[i], mz = model_z_[i];
-    const double x = R(0, 0) * mx + R(0, 1) * my + R(0, 2) * mz + t.x();
-    const double y = R(1, 0) * mx + R(1, 1) * my + R(1, 2) * mz + t.y();
-    const double z = R(2, 0) * mx + R(2, 1) * my + R(2, 2) * mz + t.z();
-    cam_x_[i] = x;
-    cam_y_[i] = y;
-    cam_z_[i] = z;
-    unsigned code = 0;
-    if (z >= near_mm) {
-      const double inv_z = 1.0 / z;
-      const double u = K.fx * x * inv_z + K.cx, v = K.fy * y * inv_z + K.cy;
-      code |= (u < guard_lo) << kGuardShift | (u > guard_hi_u) << (kGuardShift + 1) |
-              (v < guard_lo) << (kGuardShift + 2) | (v > guard_hi_v) << (kGuardShift + 3);
-      code |= (u < in_lo) << kRejectShift | (u > in_hi_u) << (kRejectShift + 1) |
-              (v < in_lo) << (kRejectShift + 2) | (v > in_hi_v) << (kRejectShift + 3);
-      if (!(code & kClipMask)) {
-        snap_x_[i] = snap(u);
-        snap_y_[i] = snap(v);
-      }
-    } else {
-      // Behind the near plane: the side tests still hold as half-spaces
-      // through the eye, which is all the trivial reject needs.
-      code = kNear;
-      const ClipPoint p{x, y, z};
-      for (unsigned k = 0; k < 4; ++k)
-        if (reject[k].distance(p) < 0) code |= 1u << (kRejectShift + k);
-    }
-    outcode_[i] = code;
+  raster::VertexPass pass;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) pass.R[3 * r + c] = R(r, c);
+    pass.t[r] = t[r];
   }
+  pass.fx = K.fx;
+  pass.fy = K.fy;
+  pass.cx = K.cx;
+  pass.cy = K.cy;
+  pass.near_mm = config_.near_mm;
+  const double g = raster::kGuardBandPx;
+  pass.guard_lo = -g;
+  pass.guard_hi_u = K.width - 1 + g;
+  pass.guard_hi_v = K.height - 1 + g;
+  pass.in_lo = -1.0;
+  pass.in_hi_u = K.width;
+  pass.in_hi_v = K.height;
+  ClipPlane reject[4];
+  side_planes(K, pass.in_lo, pass.in_hi_u, pass.in_lo, pass.in_hi_v, reject);
+  for (int k = 0; k < 4; ++k) {
+    pass.reject_plane[k][0] = reject[k].a;
+    pass.reject_plane[k][1] = reject[k].b;
+    pass.reject_plane[k][2] = reject[k].c;
+    pass.reject_plane[k][3] = reject[k].d;
+  }
+  raster::VertexArrays v;
+  v.model_x = model_x_.data();
+  v.model_y = model_y_.data();
+  v.model_z = model_z_.data();
+  v.x = cam_x_.data();
+  v.y = cam_y_.data();
+  v.z = cam_z_.data();
+  v.outcode = outcode_.data();
+  v.snap_x = snap_x_.data();
+  v.snap_y = snap_y_.data();
+  v.count = static_cast<int>(model_x_.size());
+  raster::transform_vertices(pass, v, use_avx512_);
 }
 
 // A triangle that passed the trivial tests (raster::classify): snapped,
@@ -387,8 +377,8 @@ void MeshRasterizer::draw_clipped(int t, const raster::Target& tgt, raster::Coun
   std::int64_t sx[raster::kMaxClipVertices], sy[raster::kMaxClipVertices];
   double z_min = poly[0].z, z_max = poly[0].z;
   for (int k = 0; k < n; ++k) {
-    sx[k] = snap(camera_.fx * poly[k].x / poly[k].z + camera_.cx);
-    sy[k] = snap(camera_.fy * poly[k].y / poly[k].z + camera_.cy);
+    sx[k] = raster::snap(camera_.fx * poly[k].x / poly[k].z + camera_.cx);
+    sy[k] = raster::snap(camera_.fy * poly[k].y / poly[k].z + camera_.cy);
     z_min = std::min(z_min, poly[k].z);
     z_max = std::max(z_max, poly[k].z);
   }

@@ -3,7 +3,8 @@
 // the portable one, on random vertex data: outcodes of every kind,
 // snapped positions anywhere in the guard band (differences near 2^28, so
 // that 32-bit products would overflow), collinear and repeated vertices,
-// triangles between pixel centres, partial batches.
+// triangles between pixel centres, partial batches. The vertex pass's two
+// forms against each other, bit for bit.
 #include <doctest/doctest.h>
 
 #include <algorithm>
@@ -14,6 +15,7 @@
 
 #include "core/raster_cull.h"
 #include "core/raster_triangle.h"
+#include "core/se3.h"
 
 using namespace st::raster;
 
@@ -174,4 +176,138 @@ TEST_CASE("raster cull: portable and AVX-512 classify match the definitions") {
   CHECK(clipped > 1000);
   CHECK(outside > 500);
   CHECK(culled > 2000);
+}
+
+TEST_CASE("raster cull: the AVX-512 vertex pass writes the portable one's bits") {
+  if (!avx512_available()) {
+    MESSAGE("no AVX-512 on this CPU: only the portable vertex pass runs");
+    return;
+  }
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> coord(-150.f, 150.f);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  int ahead = 0, behind = 0, clipped = 0, snapped = 0;
+  for (int round = 0; round < 30; ++round) {
+    const int n = 1000 + round;  // a partial last step in most rounds
+    std::vector<float> mx(n), my(n), mz(n);
+    for (int i = 0; i < n; ++i) {
+      mx[i] = coord(rng);
+      my[i] = coord(rng);
+      mz[i] = coord(rng);
+    }
+    // The camera in or near the cloud: vertices behind the near plane, in
+    // the image, beyond the image and beyond the guard band (grazing).
+    const st::SE3 T(st::Quat(unit(rng), unit(rng), unit(rng), unit(rng)),
+                    st::Vec3(20 * unit(rng), 20 * unit(rng), 60 + 80 * unit(rng)));
+    VertexPass pass;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) pass.R[3 * r + c] = T.rotation()(r, c);
+      pass.t[r] = T.translation()[r];
+    }
+    pass.fx = 900 + 100 * unit(rng);
+    pass.fy = pass.fx * (1 + 0.01 * unit(rng));
+    pass.cx = 639.5 + 5 * unit(rng);
+    pass.cy = 359.5 + 5 * unit(rng);
+    pass.near_mm = 1.0;
+    pass.guard_lo = -kGuardBandPx;
+    pass.guard_hi_u = kW - 1 + kGuardBandPx;
+    pass.guard_hi_v = kH - 1 + kGuardBandPx;
+    pass.in_lo = -1.0;
+    pass.in_hi_u = kW;
+    pass.in_hi_v = kH;
+    const double planes[4][4] = {{pass.fx, 0, pass.cx + 1, 0},
+                                 {-pass.fx, 0, kW - pass.cx, 0},
+                                 {0, pass.fy, pass.cy + 1, 0},
+                                 {0, -pass.fy, kH - pass.cy, 0}};
+    std::copy(&planes[0][0], &planes[0][0] + 16, &pass.reject_plane[0][0]);
+    struct Out {
+      std::vector<double> x, y, z;
+      std::vector<std::uint32_t> code;
+      std::vector<std::int32_t> sx, sy;
+      explicit Out(int m) : x(m), y(m), z(m), code(m), sx(m, 12345), sy(m, 12345) {}
+      VertexArrays arrays(const std::vector<float>& a, const std::vector<float>& b,
+                          const std::vector<float>& c) {
+        VertexArrays v;
+        v.model_x = a.data();
+        v.model_y = b.data();
+        v.model_z = c.data();
+        v.x = x.data();
+        v.y = y.data();
+        v.z = z.data();
+        v.outcode = code.data();
+        v.snap_x = sx.data();
+        v.snap_y = sy.data();
+        v.count = static_cast<int>(x.size());
+        return v;
+      }
+    };
+    Out portable(n), simd(n);
+    transform_vertices(pass, portable.arrays(mx, my, mz), false);
+    transform_vertices(pass, simd.arrays(mx, my, mz), true);
+    long diff = 0;
+    for (int i = 0; i < n; ++i) {
+      diff += portable.x[i] != simd.x[i] || portable.y[i] != simd.y[i] ||
+              portable.z[i] != simd.z[i] || portable.code[i] != simd.code[i] ||
+              portable.sx[i] != simd.sx[i] || portable.sy[i] != simd.sy[i];
+      const std::uint32_t c = portable.code[i];
+      behind += (c & kOutNear) != 0;
+      ahead += (c & kOutNear) == 0;
+      clipped += (c & (kOutClipMask & ~kOutNear)) != 0;
+      snapped += (c & kOutClipMask) == 0 && portable.sx[i] != 12345;
+    }
+    CHECK(diff == 0);
+  }
+  CHECK(behind > 1000);
+  CHECK(ahead > 1000);
+  CHECK(clipped > 100);
+  CHECK(snapped > 1000);
+}
+
+TEST_CASE("raster cull: both vertex passes snap halves away from zero") {
+  // Identity pose, fx = fy = 1, principal point 0, z = 1: u = model x
+  // exactly, so positions on, next to and half-way between sub-pixel steps
+  // are fed in exactly.
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> step(-2000000, 2000000), kind(0, 2);
+  const int n = 999;
+  std::vector<float> mx(n), my(n), mz(n, 1.0f);
+  std::vector<std::int32_t> want_x(n), want_y(n);
+  for (int i = 0; i < n; ++i) {
+    const int k = step(rng), j = step(rng);
+    const double frac[3] = {0.5, 0.0, 0.25};
+    const double fx = k < 0 ? -frac[kind(rng)] : frac[kind(rng)];
+    mx[i] = static_cast<float>((k + fx) / 4096.0);
+    my[i] = static_cast<float>((j - 0.5) / 4096.0);
+    want_x[i] = static_cast<std::int32_t>(std::round(k + fx));  // std::round: half away from 0
+    want_y[i] = static_cast<std::int32_t>(std::round(j - 0.5));
+  }
+  VertexPass pass;
+  pass.R[0] = pass.R[4] = pass.R[8] = 1.0;
+  pass.fx = pass.fy = 1.0;
+  pass.near_mm = 0.5;
+  pass.guard_lo = -1e6;
+  pass.guard_hi_u = pass.guard_hi_v = 1e6;
+  pass.in_lo = -1e6;
+  pass.in_hi_u = pass.in_hi_v = 1e6;
+  for (bool avx512 : {false, true}) {
+    if (avx512 && !avx512_available()) continue;
+    std::vector<double> x(n), y(n), z(n);
+    std::vector<std::uint32_t> code(n, 99);
+    std::vector<std::int32_t> sx(n), sy(n);
+    VertexArrays v;
+    v.model_x = mx.data();
+    v.model_y = my.data();
+    v.model_z = mz.data();
+    v.x = x.data();
+    v.y = y.data();
+    v.z = z.data();
+    v.outcode = code.data();
+    v.snap_x = sx.data();
+    v.snap_y = sy.data();
+    v.count = n;
+    transform_vertices(pass, v, avx512);
+    int wrong = 0;
+    for (int i = 0; i < n; ++i) wrong += code[i] != 0 || sx[i] != want_x[i] || sy[i] != want_y[i];
+    CHECK_MESSAGE(wrong == 0, (avx512 ? "AVX-512" : "portable"));
+  }
 }
