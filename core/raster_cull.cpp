@@ -18,16 +18,23 @@ bool covers_pixel_centre(std::int32_t lo, std::int32_t hi, int size) {
   return first <= last;
 }
 
-inline double plane_distance(const double* p, double x, double y, double z) {
-  return p[0] * x + p[1] * y + p[2] * z + p[3];
+// r[0] a + r[1] b + r[2] c + t (a rotation row, or a plane with t = r[3]).
+inline double affine(const double* r, double a, double b, double c, double t) {
+  return r[0] * a + r[1] * b + r[2] * c + t;
+}
+
+// The four side bits from `first` on: left, right, top, bottom.
+inline unsigned side_bits(double u, double w, double lo, double hi_u, double hi_v, unsigned first) {
+  return static_cast<unsigned>(u < lo) << first | static_cast<unsigned>(u > hi_u) << (first + 1) |
+         static_cast<unsigned>(w < lo) << (first + 2) | static_cast<unsigned>(w > hi_v) << (first + 3);
 }
 
 void transform_portable(const VertexPass& c, const VertexArrays& v) {
   for (int i = 0; i < v.count; ++i) {
     const double mx = v.model_x[i], my = v.model_y[i], mz = v.model_z[i];
-    const double x = c.R[0] * mx + c.R[1] * my + c.R[2] * mz + c.t[0];
-    const double y = c.R[3] * mx + c.R[4] * my + c.R[5] * mz + c.t[1];
-    const double z = c.R[6] * mx + c.R[7] * my + c.R[8] * mz + c.t[2];
+    const double x = affine(c.R, mx, my, mz, c.t[0]);
+    const double y = affine(c.R + 3, mx, my, mz, c.t[1]);
+    const double z = affine(c.R + 6, mx, my, mz, c.t[2]);
     v.x[i] = x;
     v.y[i] = y;
     v.z[i] = z;
@@ -35,10 +42,8 @@ void transform_portable(const VertexPass& c, const VertexArrays& v) {
     if (z >= c.near_mm) {
       const double inv_z = 1.0 / z;
       const double u = c.fx * x * inv_z + c.cx, w = c.fy * y * inv_z + c.cy;
-      code |= (u < c.guard_lo) << kOutGuardShift | (u > c.guard_hi_u) << (kOutGuardShift + 1) |
-              (w < c.guard_lo) << (kOutGuardShift + 2) | (w > c.guard_hi_v) << (kOutGuardShift + 3);
-      code |= (u < c.in_lo) << kOutRejectShift | (u > c.in_hi_u) << (kOutRejectShift + 1) |
-              (w < c.in_lo) << (kOutRejectShift + 2) | (w > c.in_hi_v) << (kOutRejectShift + 3);
+      code = side_bits(u, w, c.guard_lo, c.guard_hi_u, c.guard_hi_v, kOutGuardShift) |
+             side_bits(u, w, c.in_lo, c.in_hi_u, c.in_hi_v, kOutRejectShift);
       if (!(code & kOutClipMask)) {
         v.snap_x[i] = snap(u);
         v.snap_y[i] = snap(w);
@@ -48,7 +53,8 @@ void transform_portable(const VertexPass& c, const VertexArrays& v) {
       // through the eye, which is all the trivial reject needs.
       code = kOutNear;
       for (unsigned k = 0; k < 4; ++k)
-        if (plane_distance(c.reject_plane[k], x, y, z) < 0) code |= 1u << (kOutRejectShift + k);
+        if (affine(c.reject_plane[k], x, y, z, c.reject_plane[k][3]) < 0)
+          code |= 1u << (kOutRejectShift + k);
     }
     v.outcode[i] = code;
   }
@@ -150,12 +156,31 @@ ST_AVX512 inline __m512i set_bit(__m512i code, __mmask8 m, unsigned bit) {
   return _mm512_mask_or_epi32(code, m, code, _mm512_set1_epi32(static_cast<std::int32_t>(bit)));
 }
 
-ST_AVX512 inline __m512d row_times(const double* r, __m512d mx, __m512d my, __m512d mz, double t) {
+// The four side bits from `first` on (left, right, top, bottom: u < lo,
+// u > hi_u, w < lo, w > hi_v) in the lanes selected by m.
+ST_AVX512 inline __m512i side_bits(__m512i code, __mmask8 m, __m512d u, __m512d w, double lo,
+                                   double hi_u, double hi_v, unsigned first) {
+  const __m512d low = _mm512_set1_pd(lo);
+  code = set_bit(code, _mm512_mask_cmp_pd_mask(m, u, low, _CMP_LT_OQ), 1u << first);
+  code = set_bit(code, _mm512_mask_cmp_pd_mask(m, u, _mm512_set1_pd(hi_u), _CMP_GT_OQ),
+                 1u << (first + 1));
+  code = set_bit(code, _mm512_mask_cmp_pd_mask(m, w, low, _CMP_LT_OQ), 1u << (first + 2));
+  return set_bit(code, _mm512_mask_cmp_pd_mask(m, w, _mm512_set1_pd(hi_v), _CMP_GT_OQ),
+                 1u << (first + 3));
+}
+
+// r[0] a + r[1] b + r[2] c + t, evaluated left to right as in the scalar code.
+ST_AVX512 inline __m512d affine_row(const double* r, __m512d a, __m512d b, __m512d c, double t) {
   return _mm512_add_pd(
-      _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(r[0]), mx),
-                                  _mm512_mul_pd(_mm512_set1_pd(r[1]), my)),
-                    _mm512_mul_pd(_mm512_set1_pd(r[2]), mz)),
+      _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(r[0]), a),
+                                  _mm512_mul_pd(_mm512_set1_pd(r[1]), b)),
+                    _mm512_mul_pd(_mm512_set1_pd(r[2]), c)),
       _mm512_set1_pd(t));
+}
+
+// 8 floats (the lanes of live) widened to doubles.
+ST_AVX512 inline __m512d load_widened(const float* p, __mmask8 live) {
+  return _mm512_cvtps_pd(_mm512_castps512_ps256(_mm512_maskz_loadu_ps(live, p)));
 }
 
 // transform_portable, 8 vertices a step: the same operations in the same
@@ -165,15 +190,11 @@ ST_AVX512 void transform_avx512(const VertexPass& c, const VertexArrays& v) {
   for (int i = 0; i < v.count; i += 8) {
     const int left = v.count - i;
     const __mmask8 live = left >= 8 ? __mmask8(0xFF) : __mmask8((1u << left) - 1);
-    const __m512d mx = _mm512_cvtps_pd(_mm512_castps512_ps256(
-        _mm512_maskz_loadu_ps(live, v.model_x + i)));
-    const __m512d my = _mm512_cvtps_pd(_mm512_castps512_ps256(
-        _mm512_maskz_loadu_ps(live, v.model_y + i)));
-    const __m512d mz = _mm512_cvtps_pd(_mm512_castps512_ps256(
-        _mm512_maskz_loadu_ps(live, v.model_z + i)));
-    const __m512d x = row_times(c.R, mx, my, mz, c.t[0]);
-    const __m512d y = row_times(c.R + 3, mx, my, mz, c.t[1]);
-    const __m512d z = row_times(c.R + 6, mx, my, mz, c.t[2]);
+    const __m512d mx = load_widened(v.model_x + i, live), my = load_widened(v.model_y + i, live),
+                  mz = load_widened(v.model_z + i, live);
+    const __m512d x = affine_row(c.R, mx, my, mz, c.t[0]);
+    const __m512d y = affine_row(c.R + 3, mx, my, mz, c.t[1]);
+    const __m512d z = affine_row(c.R + 6, mx, my, mz, c.t[2]);
     _mm512_mask_storeu_pd(v.x + i, live, x);
     _mm512_mask_storeu_pd(v.y + i, live, y);
     _mm512_mask_storeu_pd(v.z + i, live, z);
@@ -186,31 +207,13 @@ ST_AVX512 void transform_avx512(const VertexPass& c, const VertexArrays& v) {
     const __m512d w = _mm512_add_pd(
         _mm512_mul_pd(_mm512_mul_pd(_mm512_set1_pd(c.fy), y), inv_z), _mm512_set1_pd(c.cy));
     __m512i code = _mm512_setzero_si512();
-    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, u, _mm512_set1_pd(c.guard_lo), _CMP_LT_OQ),
-                   1u << kOutGuardShift);
-    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, u, _mm512_set1_pd(c.guard_hi_u), _CMP_GT_OQ),
-                   1u << (kOutGuardShift + 1));
-    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, w, _mm512_set1_pd(c.guard_lo), _CMP_LT_OQ),
-                   1u << (kOutGuardShift + 2));
-    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, w, _mm512_set1_pd(c.guard_hi_v), _CMP_GT_OQ),
-                   1u << (kOutGuardShift + 3));
-    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, u, _mm512_set1_pd(c.in_lo), _CMP_LT_OQ),
-                   1u << kOutRejectShift);
-    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, u, _mm512_set1_pd(c.in_hi_u), _CMP_GT_OQ),
-                   1u << (kOutRejectShift + 1));
-    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, w, _mm512_set1_pd(c.in_lo), _CMP_LT_OQ),
-                   1u << (kOutRejectShift + 2));
-    code = set_bit(code, _mm512_mask_cmp_pd_mask(ahead, w, _mm512_set1_pd(c.in_hi_v), _CMP_GT_OQ),
-                   1u << (kOutRejectShift + 3));
+    code = side_bits(code, ahead, u, w, c.guard_lo, c.guard_hi_u, c.guard_hi_v, kOutGuardShift);
+    code = side_bits(code, ahead, u, w, c.in_lo, c.in_hi_u, c.in_hi_v, kOutRejectShift);
     // Behind it: near, and the reject planes through the eye.
     code = set_bit(code, behind, kOutNear);
     for (unsigned k = 0; k < 4; ++k) {
       const double* p = c.reject_plane[k];
-      const __m512d d = _mm512_add_pd(
-          _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(p[0]), x),
-                                      _mm512_mul_pd(_mm512_set1_pd(p[1]), y)),
-                        _mm512_mul_pd(_mm512_set1_pd(p[2]), z)),
-          _mm512_set1_pd(p[3]));
+      const __m512d d = affine_row(p, x, y, z, p[3]);
       code = set_bit(code, _mm512_mask_cmp_pd_mask(behind, d, _mm512_setzero_pd(), _CMP_LT_OQ),
                      1u << (kOutRejectShift + k));
     }

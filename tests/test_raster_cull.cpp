@@ -132,6 +132,32 @@ CullBatch reference(const Scene& s, int t0, int n, bool cull_backfaces) {
   return b;
 }
 
+// Model vertices in, and the vertex pass's outputs (snapped positions
+// preset to a marker, written only where kept).
+struct VertexBuffers {
+  std::vector<float> mx, my, mz;
+  std::vector<double> x, y, z;
+  std::vector<std::uint32_t> code;
+  std::vector<std::int32_t> sx, sy;
+  static constexpr std::int32_t kUnwritten = 12345;
+  explicit VertexBuffers(int n)
+      : mx(n), my(n), mz(n), x(n), y(n), z(n), code(n), sx(n, kUnwritten), sy(n, kUnwritten) {}
+  VertexArrays arrays() {
+    VertexArrays v;
+    v.model_x = mx.data();
+    v.model_y = my.data();
+    v.model_z = mz.data();
+    v.x = x.data();
+    v.y = y.data();
+    v.z = z.data();
+    v.outcode = code.data();
+    v.snap_x = sx.data();
+    v.snap_y = sy.data();
+    v.count = static_cast<int>(x.size());
+    return v;
+  }
+};
+
 void check_same(const CullBatch& a, const CullBatch& b) {
   CHECK(a.draw == b.draw);
   CHECK(a.clip == b.clip);
@@ -189,12 +215,13 @@ TEST_CASE("raster cull: the AVX-512 vertex pass writes the portable one's bits")
   int ahead = 0, behind = 0, clipped = 0, snapped = 0;
   for (int round = 0; round < 30; ++round) {
     const int n = 1000 + round;  // a partial last step in most rounds
-    std::vector<float> mx(n), my(n), mz(n);
+    VertexBuffers portable(n);
     for (int i = 0; i < n; ++i) {
-      mx[i] = coord(rng);
-      my[i] = coord(rng);
-      mz[i] = coord(rng);
+      portable.mx[i] = coord(rng);
+      portable.my[i] = coord(rng);
+      portable.mz[i] = coord(rng);
     }
+    VertexBuffers simd = portable;
     // The camera in or near the cloud: vertices behind the near plane, in
     // the image, beyond the image and beyond the guard band (grazing).
     const st::SE3 T(st::Quat(unit(rng), unit(rng), unit(rng), unit(rng)),
@@ -220,30 +247,8 @@ TEST_CASE("raster cull: the AVX-512 vertex pass writes the portable one's bits")
                                  {0, pass.fy, pass.cy + 1, 0},
                                  {0, -pass.fy, kH - pass.cy, 0}};
     std::copy(&planes[0][0], &planes[0][0] + 16, &pass.reject_plane[0][0]);
-    struct Out {
-      std::vector<double> x, y, z;
-      std::vector<std::uint32_t> code;
-      std::vector<std::int32_t> sx, sy;
-      explicit Out(int m) : x(m), y(m), z(m), code(m), sx(m, 12345), sy(m, 12345) {}
-      VertexArrays arrays(const std::vector<float>& a, const std::vector<float>& b,
-                          const std::vector<float>& c) {
-        VertexArrays v;
-        v.model_x = a.data();
-        v.model_y = b.data();
-        v.model_z = c.data();
-        v.x = x.data();
-        v.y = y.data();
-        v.z = z.data();
-        v.outcode = code.data();
-        v.snap_x = sx.data();
-        v.snap_y = sy.data();
-        v.count = static_cast<int>(x.size());
-        return v;
-      }
-    };
-    Out portable(n), simd(n);
-    transform_vertices(pass, portable.arrays(mx, my, mz), false);
-    transform_vertices(pass, simd.arrays(mx, my, mz), true);
+    transform_vertices(pass, portable.arrays(), false);
+    transform_vertices(pass, simd.arrays(), true);
     long diff = 0;
     for (int i = 0; i < n; ++i) {
       diff += portable.x[i] != simd.x[i] || portable.y[i] != simd.y[i] ||
@@ -253,7 +258,7 @@ TEST_CASE("raster cull: the AVX-512 vertex pass writes the portable one's bits")
       behind += (c & kOutNear) != 0;
       ahead += (c & kOutNear) == 0;
       clipped += (c & (kOutClipMask & ~kOutNear)) != 0;
-      snapped += (c & kOutClipMask) == 0 && portable.sx[i] != 12345;
+      snapped += (c & kOutClipMask) == 0 && portable.sx[i] != VertexBuffers::kUnwritten;
     }
     CHECK(diff == 0);
   }
@@ -270,14 +275,15 @@ TEST_CASE("raster cull: both vertex passes snap halves away from zero") {
   std::mt19937 rng(11);
   std::uniform_int_distribution<int> step(-2000000, 2000000), kind(0, 2);
   const int n = 999;
-  std::vector<float> mx(n), my(n), mz(n, 1.0f);
+  VertexBuffers in(n);
   std::vector<std::int32_t> want_x(n), want_y(n);
   for (int i = 0; i < n; ++i) {
     const int k = step(rng), j = step(rng);
     const double frac[3] = {0.5, 0.0, 0.25};
     const double fx = k < 0 ? -frac[kind(rng)] : frac[kind(rng)];
-    mx[i] = static_cast<float>((k + fx) / 4096.0);
-    my[i] = static_cast<float>((j - 0.5) / 4096.0);
+    in.mx[i] = static_cast<float>((k + fx) / 4096.0);
+    in.my[i] = static_cast<float>((j - 0.5) / 4096.0);
+    in.mz[i] = 1.0f;
     want_x[i] = static_cast<std::int32_t>(std::round(k + fx));  // std::round: half away from 0
     want_y[i] = static_cast<std::int32_t>(std::round(j - 0.5));
   }
@@ -291,23 +297,12 @@ TEST_CASE("raster cull: both vertex passes snap halves away from zero") {
   pass.in_hi_u = pass.in_hi_v = 1e6;
   for (bool avx512 : {false, true}) {
     if (avx512 && !avx512_available()) continue;
-    std::vector<double> x(n), y(n), z(n);
-    std::vector<std::uint32_t> code(n, 99);
-    std::vector<std::int32_t> sx(n), sy(n);
-    VertexArrays v;
-    v.model_x = mx.data();
-    v.model_y = my.data();
-    v.model_z = mz.data();
-    v.x = x.data();
-    v.y = y.data();
-    v.z = z.data();
-    v.outcode = code.data();
-    v.snap_x = sx.data();
-    v.snap_y = sy.data();
-    v.count = n;
-    transform_vertices(pass, v, avx512);
+    VertexBuffers out = in;
+    std::fill(out.code.begin(), out.code.end(), 99u);
+    transform_vertices(pass, out.arrays(), avx512);
     int wrong = 0;
-    for (int i = 0; i < n; ++i) wrong += code[i] != 0 || sx[i] != want_x[i] || sy[i] != want_y[i];
+    for (int i = 0; i < n; ++i)
+      wrong += out.code[i] != 0 || out.sx[i] != want_x[i] || out.sy[i] != want_y[i];
     CHECK_MESSAGE(wrong == 0, (avx512 ? "AVX-512" : "portable"));
   }
 }
