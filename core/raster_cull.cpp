@@ -12,9 +12,9 @@ namespace st::raster {
 namespace {
 
 // Some pixel centre (integer coordinates) inside the snapped extent lo..hi?
-bool covers_pixel_centre(std::int32_t lo, std::int32_t hi, int size) {
-  const std::int32_t first = std::max<std::int32_t>(0, (lo + (kSubpixelScale - 1)) >> kSubpixelBits);
-  const std::int32_t last = std::min<std::int32_t>(size - 1, hi >> kSubpixelBits);
+bool covers_pixel_centre(std::int64_t lo, std::int64_t hi, int size) {
+  const std::int64_t first = std::max<std::int64_t>(0, (lo + kSubpixelScale - 1) >> kSubpixelBits);
+  const std::int64_t last = std::min<std::int64_t>(size - 1, hi >> kSubpixelBits);
   return first <= last;
 }
 
