@@ -15,8 +15,6 @@ namespace {
 
 using raster::ClipPlane;
 using raster::ClipPoint;
-using raster::kSubpixelBits;
-using raster::kSubpixelScale;
 
 constexpr unsigned kClipMask = raster::kOutClipMask;  // vertex outcodes: see raster_cull.h
 constexpr int kBufferPad = raster::kTargetPad;
