@@ -4,7 +4,7 @@
 
 #include "core/raster_triangle.h"
 
-#if ST_RASTER_AVX512
+#if ST_HAVE_AVX512
 #include <immintrin.h>
 #endif
 
@@ -90,7 +90,7 @@ void classify_portable(const CullInput& in, int t0, int n, CullBatch* out) {
   }
 }
 
-#if ST_RASTER_AVX512
+#if ST_HAVE_AVX512
 // GCC 12's AVX-512 intrinsics start from _mm512_undefined_*() and warn that
 // it is uninitialised wherever they are inlined (a false positive, GCC bug
 // 105593): every lane of those values is overwritten (full masks).
@@ -265,7 +265,7 @@ ST_AVX512 void classify_avx512(const CullInput& in, int t0, int n, CullBatch* ou
 }  // namespace
 
 void transform_vertices(const VertexPass& pass, const VertexArrays& v, bool use_avx512) {
-#if ST_RASTER_AVX512
+#if ST_HAVE_AVX512
   if (use_avx512) {
     transform_avx512(pass, v);
     return;
@@ -278,7 +278,7 @@ void transform_vertices(const VertexPass& pass, const VertexArrays& v, bool use_
 
 void classify(const CullInput& in, int t0, int n, bool use_avx512, CullBatch* out) {
   *out = {};
-#if ST_RASTER_AVX512
+#if ST_HAVE_AVX512
   if (use_avx512) {
     classify_avx512(in, t0, n, out);
     return;

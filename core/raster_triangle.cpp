@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <opencv2/core/hal/intrin.hpp>
 
-#if ST_RASTER_AVX512
+#if ST_HAVE_AVX512
 #include <immintrin.h>
 #endif
 
@@ -443,7 +443,7 @@ void draw_box_simd(const BoxSetup& b, const Target& target, Counters* counters) 
 }
 #endif
 
-#if ST_RASTER_AVX512
+#if ST_HAVE_AVX512
 // min(max(v, lo), hi) in every lane (the zero-masking forms with a full
 // mask: GCC 12's unmasked ones warn about their undefined source operand).
 ST_AVX512 inline __m512 clamp_avx512(__m512 v, __m512 lo, __m512 hi) {
@@ -544,18 +544,11 @@ ST_AVX512 int resolve_row_avx512(float* depth, std::uint8_t* mask, int x0, int x
 
 bool simd_enabled() { return CV_SIMD != 0; }
 
-bool avx512_available() {
-#if ST_RASTER_AVX512
-  static const bool available = __builtin_cpu_supports("avx512f");
-  return available;
-#else
-  return false;
-#endif
-}
+bool avx512_available() { return cpu_has_avx512f(); }
 
 int resolve_row(float* depth, std::uint8_t* mask, int x0, int x1, bool use_simd, bool use_avx512) {
   int covered = 0;
-#if ST_RASTER_AVX512
+#if ST_HAVE_AVX512
   if (use_simd && use_avx512) x0 = resolve_row_avx512(depth, mask, x0, x1, &covered);
 #else
   (void)use_avx512;
@@ -588,7 +581,7 @@ void draw_rows(PreparedTriangle* tri, int y_stop, const Target& target, Counters
   s.iz_min = tri->iz_min;
   s.iz_max = tri->iz_max;
   s.id = tri->id;
-#if ST_RASTER_AVX512
+#if ST_HAVE_AVX512
   if (target.use_simd && target.use_avx512) {
     draw_rows_avx512(tri, y_stop, target, &s, counters);
     return;
@@ -614,7 +607,7 @@ bool draw_small(const FixedTriangle& tri, const DepthPlane& plane, std::int32_t 
   if (!setup_box(tri, plane, id, target, &b)) return false;
   if (b.x0 > b.x1 || b.y0 > b.y1) return true;
   mark_box_dirty(b, target);
-#if ST_RASTER_AVX512
+#if ST_HAVE_AVX512
   if (target.use_simd && target.use_avx512) {
     draw_box_avx512(b, target, counters);
     return true;

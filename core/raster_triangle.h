@@ -10,15 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 
-// The AVX-512 forms (x86-64, GCC or Clang) are compiled in alongside the
-// others with a per-function target, and chosen at run time
-// (avx512_available()); the rest of the build keeps its instruction set.
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#define ST_RASTER_AVX512 1
-#define ST_AVX512 __attribute__((target("avx512f")))
-#else
-#define ST_RASTER_AVX512 0
-#endif
+#include "core/cpu_features.h"  // the AVX-512 forms: ST_HAVE_AVX512, ST_AVX512
 
 namespace st::raster {
 
