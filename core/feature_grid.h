@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/cpu_features.h"
 #include "core/feature_set.h"
 #include "core/result.h"
 
@@ -26,24 +27,29 @@ class FeatureGrid {
   // out (at most capacity); returns how many were written.
   int query(float x, float y, float radius, int min_octave, int max_octave, int* out,
             int capacity) const;
+  // With on (the default after configure() where the CPU has AVX-512F),
+  // query() tests 16 keypoints a step; off forces the portable loop. Same
+  // results either way (tests compare them).
+  void use_avx512(bool on) { use_avx512_ = on && cpu_has_avx512f(); }
+  bool uses_avx512() const { return use_avx512_; }
 
   int cell_px() const { return cell_px_; }
   int cells_x() const { return cells_x_; }
   int cells_y() const { return cells_y_; }
 
  private:
-  // A keypoint's position, octave and index, stored by cell so that a query
-  // reads one contiguous run per grid row instead of chasing indices into
-  // the FeatureSet (search by projection runs ~10^4 queries per frame).
-  struct Item {
-    float x, y;
-    std::int32_t octave, index;
-  };
   int cell_of(float x, float y) const;
   std::vector<std::int32_t> cell_start_;  // cells + 1 entries
   std::vector<std::int32_t> cell_fill_;   // scratch while building
-  std::vector<Item> items_;               // keypoints by cell (kMaxKeypoints)
+  // Each keypoint's position, octave and index, stored by cell so that a
+  // query reads one contiguous run per grid row instead of chasing indices
+  // into the FeatureSet (search by projection runs ~10^4 queries per
+  // frame); one array per field, so that a SIMD step loads 16 of each.
+  // kMaxKeypoints entries each.
+  std::vector<float> item_x_, item_y_;
+  std::vector<std::int32_t> item_octave_, item_index_;
   int cell_px_ = 16, cells_x_ = 0, cells_y_ = 0;
+  bool use_avx512_ = false;
 };
 
 }  // namespace st

@@ -152,6 +152,75 @@ TEST_CASE("orb feature grid: a small output capacity is respected and filled wit
   }
 }
 
+// Both forms of the grid query (AVX-512 where the CPU has it, portable)
+// against the definition, in order: random queries of any radius and
+// octave window, keypoints on the query circle exactly (integer offsets
+// 3-4-5 from integer centres), keypoints stacked on one spot, runs of any
+// length (cells hold 0 to ~60 keypoints).
+TEST_CASE("orb feature grid: the AVX-512 and portable queries return the definition's hits in order") {
+  auto f = std::make_unique<st::FeatureSet>();
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> ux(0.f, 640.f), uy(0.f, 480.f), ur(0.f, 60.f);
+  std::uniform_int_distribution<int> oct(0, 7), cx(10, 630), cy(10, 470), kind(0, 3);
+  f->count = 4000;
+  std::vector<std::pair<int, int>> centres;
+  for (int i = 0; i < f->count; ++i) {
+    st::Keypoint k{ux(rng), uy(rng), 0.f, 0.f, oct(rng)};
+    if (i % 4 == 0) {  // on the circle of radius 5 around an integer centre
+      const int c = kind(rng);
+      centres.emplace_back(cx(rng), cy(rng));
+      k.x = static_cast<float>(centres.back().first + (c & 1 ? 3 : -4));
+      k.y = static_cast<float>(centres.back().second + (c & 2 ? 4 : -3));
+    } else if (i % 4 == 1) {  // many on one spot (a long run in one cell)
+      k.x = 100.f;
+      k.y = 200.f;
+    }
+    f->keypoints[static_cast<std::size_t>(i)] = k;
+  }
+  st::FeatureGrid g;
+  REQUIRE(g.configure(640, 480, 16));
+  g.build(*f);
+  const bool avx512 = g.uses_avx512();
+  if (avx512) MESSAGE("AVX-512 grid query tested too");
+  std::vector<int> portable(4000), simd(4000);
+  long hits_total = 0, on_circle = 0;
+  for (int q = 0; q < 3000; ++q) {
+    float x = ux(rng), y = uy(rng), r = ur(rng);
+    if (q % 3 == 0) {  // exactly through keypoints on a circle
+      const auto& c = centres[static_cast<std::size_t>(q) % centres.size()];
+      x = static_cast<float>(c.first);
+      y = static_cast<float>(c.second);
+      r = 5.f;
+    } else if (q % 3 == 1) {
+      x = 100.f + (q % 7);
+      y = 200.f;
+    }
+    const int lo = q % 5 == 0 ? -1 : oct(rng), hi = q % 5 == 0 ? -1 : std::min(7, lo + q % 3);
+    std::vector<int> want;
+    for (int i = 0; i < f->count; ++i) {
+      const st::Keypoint& k = f->keypoints[static_cast<std::size_t>(i)];
+      const float dx = k.x - x, dy = k.y - y;
+      if ((lo < 0 || (k.octave >= lo && k.octave <= hi)) && dx * dx + dy * dy <= r * r) want.push_back(i);
+      on_circle += q % 3 == 0 && dx * dx + dy * dy == r * r;
+    }
+    g.use_avx512(false);
+    const int n = g.query(x, y, r, lo, hi, portable.data(), 4000);
+    REQUIRE(n == static_cast<int>(want.size()));
+    // The grid returns hits cell by cell: compare as sets, then the forms in order.
+    std::vector<int> got(portable.begin(), portable.begin() + n);
+    std::sort(got.begin(), got.end());
+    CHECK(got == want);
+    if (avx512) {
+      g.use_avx512(true);
+      REQUIRE(g.query(x, y, r, lo, hi, simd.data(), 4000) == n);
+      CHECK(std::equal(portable.begin(), portable.begin() + n, simd.begin()));
+    }
+    hits_total += n;
+  }
+  CHECK(hits_total > 100000);
+  CHECK(on_circle > 400);  // exact boundary cases occurred
+}
+
 // The tracker's refine pass skips points that found no candidate within
 // max_distance in the previous, larger search (tracker_track.cpp): that
 // relies on best_distances() being the true minimum over the candidates,
