@@ -13,9 +13,7 @@ namespace {
 
 // Some pixel centre (integer coordinates) inside the snapped extent lo..hi?
 bool covers_pixel_centre(std::int64_t lo, std::int64_t hi, int size) {
-  const std::int64_t first = std::max<std::int64_t>(0, (lo + kSubpixelScale - 1) >> kSubpixelBits);
-  const std::int64_t last = std::min<std::int64_t>(size - 1, hi >> kSubpixelBits);
-  return first <= last;
+  return std::max<std::int64_t>(0, ceil_px(lo)) <= std::min<std::int64_t>(size - 1, floor_px(hi));
 }
 
 // r[0] a + r[1] b + r[2] c + t (a rotation row, or a plane with t = r[3]).

@@ -10,11 +10,6 @@
 namespace st::raster {
 namespace {
 
-// floor / ceil of a fixed-point coordinate in whole pixels (arithmetic
-// shift floors negative values too).
-inline std::int64_t floor_px(std::int64_t v) { return v >> kSubpixelBits; }
-inline std::int64_t ceil_px(std::int64_t v) { return -((-v) >> kSubpixelBits); }
-
 // ceil(n / m) and r = q m - n in [0, m), from a floating-point estimate
 // corrected exactly in integers (no 64-bit division). m >= kSubpixelScale
 // and |n| < 2^58, so the estimate is off by at most 2 (usually 0 or 1);

@@ -19,6 +19,11 @@ namespace st::raster {
 // |X| < 2^27, differences < 2^28, products < 2^56.
 inline constexpr int kSubpixelBits = 12;
 inline constexpr std::int64_t kSubpixelScale = std::int64_t{1} << kSubpixelBits;
+// floor / ceil of a fixed-point coordinate in whole pixels (arithmetic
+// shift floors negative values too).
+inline std::int64_t floor_px(std::int64_t v) { return v >> kSubpixelBits; }
+inline std::int64_t ceil_px(std::int64_t v) { return -((-v) >> kSubpixelBits); }
+
 // Vertices projecting further than this outside the image are clipped in
 // 3D first (guard band), so fixed-point coordinates stay bounded.
 inline constexpr double kGuardBandPx = 16384.0;

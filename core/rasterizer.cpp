@@ -16,7 +16,6 @@ namespace {
 using raster::ClipPlane;
 using raster::ClipPoint;
 
-constexpr unsigned kClipMask = raster::kOutClipMask;  // vertex outcodes: see raster_cull.h
 constexpr int kBufferPad = raster::kTargetPad;
 
 // Planes through the camera centre with lo <= u <= hi and lo_v <= v <= hi_v
@@ -367,7 +366,7 @@ void MeshRasterizer::draw_clipped(int t, const raster::Target& tgt, raster::Coun
   }
   ClipPlane planes[raster::kMaxClipPlanes];
   clip_planes(camera_, config_.near_mm, planes);
-  const int n = raster::clip_polygon(poly, 3, planes, kClipMask);
+  const int n = raster::clip_polygon(poly, 3, planes, raster::kOutClipMask);
   if (n == 0) {
     ++stats_.triangles_outside;
     return;
