@@ -70,6 +70,12 @@ struct Window {
   unsigned span;  // (any octave: the whole int range)
 };
 
+// Item j lies within the window's radius and octave range.
+inline bool is_hit(const GridView& g, const Window& w, int j) {
+  const float dx = g.x[j] - w.x, dy = g.y[j] - w.y;
+  return (static_cast<unsigned>(g.octave[j] - w.lo) <= w.span) & (dx * dx + dy * dy <= w.r2);
+}
+
 // The hits among items begin..end-1, in order, to out, which has room for
 // all of them. The tests are random per keypoint (octaves mix), so the loop
 // is branch-free: every item is written and the count advances only for a
@@ -78,11 +84,8 @@ struct PortableRun {
   int operator()(const GridView& g, const Window& w, int begin, int end, int* out) const {
     int n = 0;
     for (int j = begin; j < end; ++j) {
-      const float dx = g.x[j] - w.x, dy = g.y[j] - w.y;
-      const bool hit = (static_cast<unsigned>(g.octave[j] - w.lo) <= w.span) &
-                       (dx * dx + dy * dy <= w.r2);
       out[n] = g.index[j];
-      n += hit ? 1 : 0;
+      n += is_hit(g, w, j) ? 1 : 0;
     }
     return n;
   }
@@ -104,8 +107,7 @@ template <typename Run>
       continue;
     }
     for (int j = begin; j < end; ++j) {  // may not fit: the checked loop
-      const float dx = g.x[j] - w.x, dy = g.y[j] - w.y;
-      if (static_cast<unsigned>(g.octave[j] - w.lo) > w.span || dx * dx + dy * dy > w.r2) continue;
+      if (!is_hit(g, w, j)) continue;
       if (n >= capacity) return n;
       out[n++] = g.index[j];
     }
