@@ -1,5 +1,5 @@
 // scopetrack --camera / --list-cameras: the tracker on a live libcamera
-// stream (hal/libcamera_capture.h). NOT RUN ON HARDWARE: the development
+// stream (hal/capture/libcamera_capture.h). NOT RUN ON HARDWARE: the development
 // machine has no camera; the no-camera paths are tested.
 //
 // Threads: the calling (owner) thread blocks SIGINT/SIGTERM before any
@@ -21,14 +21,14 @@
 #include <string>
 #include <thread>
 
-#include "core/latency_histogram.h"
-#include "core/sequence.h"
+#include "core/base/latency_histogram.h"
+#include "core/formats/sequence.h"
 #include "firmware_app/tracker_processor.h"
-#include "hal/file_io.h"
-#include "hal/libcamera_capture.h"
-#include "hal/mesh_file.h"
-#include "hal/replay.h"
-#include "hal/run_writer.h"
+#include "hal/storage/file_io.h"
+#include "hal/capture/libcamera_capture.h"
+#include "hal/storage/mesh_file.h"
+#include "firmware_app/replay.h"
+#include "hal/storage/run_writer.h"
 #include "platform/alloc_counter.h"
 #include "platform/clock.h"
 

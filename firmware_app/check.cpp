@@ -11,11 +11,11 @@
 #include <limits>
 #include <string>
 
-#include "core/camera.h"
-#include "core/rasterizer.h"
+#include "core/geometry/camera.h"
+#include "core/raster/rasterizer.h"
 #include "firmware_app/cli.h"
-#include "hal/sequence_loader.h"
-#include "hal/y4m_reader.h"
+#include "hal/storage/sequence_loader.h"
+#include "hal/capture/y4m_reader.h"
 
 namespace st::app {
 namespace {

@@ -5,8 +5,8 @@
 #include <span>
 #include <string_view>
 
-#include "core/result.h"
-#include "hal/sequence_loader.h"
+#include "core/base/result.h"
+#include "hal/storage/sequence_loader.h"
 
 namespace st::app {
 

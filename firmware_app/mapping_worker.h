@@ -1,6 +1,6 @@
 // The mapping thread: solves the tracker's bundle-adjustment jobs
-// (core/bundle_adjustment.h) off the tracking thread. Implements
-// core/ba_channel.h with one job buffer and a fixed-capacity SPSC queue of
+// (core/mapping/bundle_adjustment.h) off the tracking thread. Implements
+// core/mapping/ba_channel.h with one job buffer and a fixed-capacity SPSC queue of
 // job slots (platform/spsc_queue.h): while the buffer is away the tracker
 // gets nullptr from acquire_job() and defers its job; the solved job comes
 // back through an atomic state the tracker reads at the start of a frame
@@ -27,10 +27,10 @@
 #include <utility>
 #include <vector>
 
-#include "core/ba_channel.h"
-#include "core/bundle_adjustment.h"
-#include "core/latency_histogram.h"
-#include "core/tracker.h"
+#include "core/mapping/ba_channel.h"
+#include "core/mapping/bundle_adjustment.h"
+#include "core/base/latency_histogram.h"
+#include "core/tracking/tracker.h"
 #include "platform/spsc_queue.h"
 
 namespace st::app {

@@ -3,7 +3,7 @@
 //   [--fast-reference-luma L] [--fast-reference-contrast C] [--no-descriptor-refresh] [--w-shape W]
 //   [--max-raster-triangles N] [--registration-sigma-deg D --registration-sigma-mm M]
 //   [--registration-keyframes N] [--no-calibration-check] [--ring N]:
-// replays a sequence through the tracker (hal/replay.h) into the output
+// replays a sequence through the tracker (firmware_app/replay.h) into the output
 // folder. Exit status: 0 done (with a warning on stderr if the calibration
 // was judged suspect: TrackerConfig::check_calibration), 1 the sequence or
 // the replay failed (a clear message on stderr; the output written so far
@@ -15,13 +15,13 @@
 #include <string>
 #include <unistd.h>
 
-#include "core/capacity.h"
-#include "core/text_scan.h"
+#include "core/base/capacity.h"
+#include "core/formats/text_scan.h"
 #include "firmware_app/cli.h"
 #include "firmware_app/stream_link.h"
 #include "firmware_app/tracker_processor.h"
-#include "hal/replay.h"
-#include "hal/sequence_loader.h"
+#include "firmware_app/replay.h"
+#include "hal/storage/sequence_loader.h"
 #include "platform/clock.h"
 
 namespace st::app {

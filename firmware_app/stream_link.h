@@ -1,4 +1,4 @@
-// The console link of a replay: the sink thread (hal/stream_sink.h) and the
+// The console link of a replay: the sink thread (hal/stream/stream_sink.h) and the
 // texture thread (texture_worker.h) behind the replay's FrameObserver hook.
 // On the tracking thread frame_done() pushes one POD PoseSample and, on
 // frames chosen for texturing, offers a frame copy to the texture thread
@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "firmware_app/texture_worker.h"
-#include "hal/replay.h"
-#include "hal/stream_sink.h"
+#include "firmware_app/replay.h"
+#include "hal/stream/stream_sink.h"
 
 namespace st::app {
 

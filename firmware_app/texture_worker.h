@@ -1,5 +1,5 @@
 // The texture thread: colours the mesh from frames the tracking thread
-// hands over (core/mesh_texture.h, Algorithm 1) and passes the colour
+// hands over (core/texture/mesh_texture.h, Algorithm 1) and passes the colour
 // deltas to the console sink.
 //
 // Hand-over: a fixed pool of frame copies (Y, U, V) and two SPSC queues
@@ -17,9 +17,9 @@
 #include <thread>
 #include <vector>
 
-#include "core/mesh_texture.h"
-#include "hal/stream_sink.h"
-#include "hal/y4m_reader.h"
+#include "core/texture/mesh_texture.h"
+#include "hal/stream/stream_sink.h"
+#include "hal/capture/y4m_reader.h"
 #include "platform/spsc_queue.h"
 
 namespace st::app {

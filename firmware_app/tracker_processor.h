@@ -1,5 +1,5 @@
 // The tracker as the replay's per-frame processor: st::Tracker behind
-// hal/replay.h's FrameProcessor, with its mapping thread (bundle
+// firmware_app/replay.h's FrameProcessor, with its mapping thread (bundle
 // adjustment, firmware_app/mapping_worker.h) when TrackerConfig::use_ba,
 // plus the mean stage times and BA counts for summary.json.
 // Threads: configure() on the owner; start/step/stop on the tracking thread
@@ -11,9 +11,9 @@
 #include <cstdint>
 #include <string>
 
-#include "core/tracker.h"
+#include "core/tracking/tracker.h"
 #include "firmware_app/mapping_worker.h"
-#include "hal/replay.h"
+#include "firmware_app/replay.h"
 
 namespace st::app {
 

@@ -10,10 +10,10 @@
 #include <random>
 #include <vector>
 
-#include "core/ba_job.h"
-#include "core/camera.h"
-#include "core/correspondences.h"
-#include "core/mesh.h"
+#include "core/mapping/ba_job.h"
+#include "core/geometry/camera.h"
+#include "core/pose/correspondences.h"
+#include "core/mesh/mesh.h"
 #include "tests/support/draws.h"
 #include "tests/support/raster_scene.h"
 

@@ -7,7 +7,7 @@
 
 #include <random>
 
-#include "core/se3.h"
+#include "core/geometry/se3.h"
 
 namespace st::test {
 

@@ -6,7 +6,7 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "core/y4m.h"
+#include "core/formats/y4m.h"
 #include "support/support.h"
 
 namespace st::test {

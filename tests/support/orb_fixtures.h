@@ -1,6 +1,6 @@
 // Fixtures for the ORB frontend tests: the real frame's luma, a synthetic
 // textured image, homography warps, and conversions to/from cv::Mat.
-// The real frame is read through the project's Y4M parser (core/y4m.h).
+// The real frame is read through the project's Y4M parser (core/formats/y4m.h).
 #pragma once
 
 #include <string>
@@ -8,8 +8,8 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/feature_set.h"
-#include "core/image.h"
+#include "core/features/feature_set.h"
+#include "core/image/image.h"
 
 namespace st::test {
 

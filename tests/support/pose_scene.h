@@ -8,10 +8,10 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/correspondences.h"
-#include "core/mesh.h"
-#include "core/se3.h"
+#include "core/geometry/camera.h"
+#include "core/pose/correspondences.h"
+#include "core/mesh/mesh.h"
+#include "core/geometry/se3.h"
 
 namespace st::test {
 

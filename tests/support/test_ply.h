@@ -10,9 +10,9 @@
 #include <string>
 #include <string_view>
 
-#include "core/capacity.h"
-#include "core/mesh.h"
-#include "core/result.h"
+#include "core/base/capacity.h"
+#include "core/mesh/mesh.h"
+#include "core/base/result.h"
 
 namespace st::test {
 

@@ -2,11 +2,11 @@
 
 #include <doctest/doctest.h>
 
-#include "core/image.h"
-#include "core/trajectory.h"
-#include "hal/mesh_file.h"
-#include "hal/sequence_loader.h"
-#include "hal/y4m_writer.h"
+#include "core/image/image.h"
+#include "core/formats/trajectory.h"
+#include "hal/storage/mesh_file.h"
+#include "hal/storage/sequence_loader.h"
+#include "hal/storage/y4m_writer.h"
 
 namespace st::test {
 

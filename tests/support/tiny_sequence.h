@@ -5,8 +5,8 @@
 
 #include <filesystem>
 
-#include "core/mesh.h"
-#include "core/sequence.h"
+#include "core/mesh/mesh.h"
+#include "core/formats/sequence.h"
 
 namespace st::test {
 

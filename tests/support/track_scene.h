@@ -8,11 +8,11 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/image.h"
-#include "core/mesh.h"
-#include "core/rasterizer.h"
-#include "core/se3.h"
+#include "core/geometry/camera.h"
+#include "core/image/image.h"
+#include "core/mesh/mesh.h"
+#include "core/raster/rasterizer.h"
+#include "core/geometry/se3.h"
 
 namespace st::test {
 

@@ -1,4 +1,4 @@
-// Stage "ba": window bundle adjustment (core/bundle_adjustment.h) on a
+// Stage "ba": window bundle adjustment (core/mapping/bundle_adjustment.h) on a
 // simulated window of the CT liver (tests/support/ba_window.h): 8 keyframes
 // (+2 older fixed ones), ~1000 points, 1280x720 pinhole fx = 1000, poses
 // perturbed by 1 deg / 2 mm and points by 1 mm, default options (10
@@ -15,8 +15,8 @@
 
 #include "bench.h"
 #include "bench_liver.h"
-#include "core/bundle_adjustment.h"
-#include "core/closest_point.h"
+#include "core/mapping/bundle_adjustment.h"
+#include "core/mesh/closest_point.h"
 #include "platform/alloc_counter.h"
 #include "tests/support/ba_window.h"
 

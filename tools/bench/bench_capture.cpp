@@ -10,10 +10,10 @@
 #include <vector>
 
 #include "bench.h"
-#include "core/mesh_io.h"
-#include "hal/file_io.h"
-#include "hal/y4m_reader.h"
-#include "hal/y4m_writer.h"
+#include "core/formats/mesh_io.h"
+#include "hal/storage/file_io.h"
+#include "hal/capture/y4m_reader.h"
+#include "hal/storage/y4m_writer.h"
 
 namespace st::bench {
 namespace {

@@ -16,15 +16,15 @@
 #include <opencv2/imgproc.hpp>
 
 #include "bench.h"
-#include "core/image_pyramid.h"
-#include "core/orb_extractor.h"
-#include "core/orb_matcher.h"
-#include "core/valid_mask.h"
-#include "core/y4m.h"
+#include "core/image/image_pyramid.h"
+#include "core/features/orb_extractor.h"
+#include "core/features/orb_matcher.h"
+#include "core/image/valid_mask.h"
+#include "core/formats/y4m.h"
 
 namespace {
 
-// Luma of the one-frame Y4M, through the project's parser (core/y4m.h).
+// Luma of the one-frame Y4M, through the project's parser (core/formats/y4m.h).
 cv::Mat read_luma(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());

@@ -1,5 +1,5 @@
 // scopetrack-bench link: the console link's costs. Texturing one frame
-// (core/mesh_texture.h: render the id buffer + mean colour per visible
+// (core/texture/mesh_texture.h: render the id buffer + mean colour per visible
 // triangle + Algorithm 1's update) of the CT liver filling most of a
 // 1280x720 view, on the texture thread; and what the tracking thread pays
 // per frame for the stream: push_pose() into a running sink.
@@ -9,8 +9,8 @@
 
 #include "bench.h"
 #include "bench_liver.h"
-#include "core/mesh_texture.h"
-#include "hal/stream_sink.h"
+#include "core/texture/mesh_texture.h"
+#include "hal/stream/stream_sink.h"
 
 namespace st::bench {
 namespace {

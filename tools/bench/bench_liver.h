@@ -7,7 +7,7 @@
 #include <string>
 
 #include "bench.h"
-#include "core/rasterizer.h"
+#include "core/raster/rasterizer.h"
 #include "tests/support/raster_scene.h"
 #include "tests/support/test_ply.h"
 

@@ -1,4 +1,4 @@
-// Stage "occluder": OccluderMaskBuilder::build (core/occluder_mask.h) at the
+// Stage "occluder": OccluderMaskBuilder::build (core/image/occluder_mask.h) at the
 // tracker's 1280x720, on the middle 1280x720 of the real frame of
 // shared/data (tissue, no instrument: the colour test alone, nothing to
 // clean) and on the same crop with a grey, instrument-like band painted
@@ -9,9 +9,9 @@
 #include <string>
 
 #include "bench.h"
-#include "core/image.h"
-#include "core/occluder_mask.h"
-#include "hal/y4m_reader.h"
+#include "core/image/image.h"
+#include "core/image/occluder_mask.h"
+#include "hal/capture/y4m_reader.h"
 
 namespace st::bench {
 namespace {

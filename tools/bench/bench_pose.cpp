@@ -13,10 +13,10 @@
 #include <vector>
 
 #include "bench.h"
-#include "core/correspondences.h"
-#include "core/p3p.h"
-#include "core/pnp_ransac.h"
-#include "core/pose_solver.h"
+#include "core/pose/correspondences.h"
+#include "core/pose/p3p.h"
+#include "core/pose/pnp_ransac.h"
+#include "core/pose/pose_solver.h"
 #include "tests/support/draws.h"
 
 namespace st::bench {

@@ -10,8 +10,8 @@
 
 #include "bench.h"
 #include "bench_liver.h"
-#include "core/image.h"
-#include "core/rasterizer.h"
+#include "core/image/image.h"
+#include "core/raster/rasterizer.h"
 #include "tests/support/raster_scene.h"
 
 namespace st::bench {

@@ -17,9 +17,9 @@
 #include <vector>
 
 #include "bench.h"
-#include "core/tracker.h"
-#include "hal/sequence_loader.h"
-#include "hal/y4m_reader.h"
+#include "core/tracking/tracker.h"
+#include "hal/storage/sequence_loader.h"
+#include "hal/capture/y4m_reader.h"
 #include "platform/alloc_counter.h"
 #include "platform/clock.h"
 

@@ -4,10 +4,10 @@
 #include <cstdio>
 #include <cstring>
 
-#include "core/capacity.h"
-#include "core/trajectory.h"
-#include "hal/file_io.h"
-#include "hal/mesh_file.h"
+#include "core/base/capacity.h"
+#include "core/formats/trajectory.h"
+#include "hal/storage/file_io.h"
+#include "hal/storage/mesh_file.h"
 
 namespace st::console {
 

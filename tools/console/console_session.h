@@ -1,7 +1,7 @@
 // What scopetrack-console keeps from one connection: the Hello, every pose
 // in order, the latest colour of every triangle, the latest health. Takes
 // raw bytes as they arrive (feed()); every buffer is verified
-// (hal/stream_protocol.h decode_message) before it is read. Host tool: may
+// (hal/stream/stream_protocol.h decode_message) before it is read. Host tool: may
 // allocate.
 #pragma once
 
@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "core/mesh.h"
-#include "core/result.h"
-#include "hal/stream_protocol.h"
+#include "core/mesh/mesh.h"
+#include "core/base/result.h"
+#include "hal/stream/stream_protocol.h"
 
 namespace st::console {
 

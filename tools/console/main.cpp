@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "hal/mesh_file.h"
+#include "hal/storage/mesh_file.h"
 #include "platform/clock.h"
 #include "platform/socket.h"
 #include "tools/console/console_session.h"

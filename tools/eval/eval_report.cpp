@@ -5,9 +5,9 @@
 #include <cstdlib>
 #include <sstream>
 
-#include "core/trajectory.h"
-#include "hal/file_io.h"
-#include "hal/sequence_loader.h"
+#include "core/formats/trajectory.h"
+#include "hal/storage/file_io.h"
+#include "hal/storage/sequence_loader.h"
 
 namespace st {
 namespace {

@@ -4,8 +4,8 @@
 #include <filesystem>
 #include <string>
 
-#include "core/evaluation.h"
-#include "core/result.h"
+#include "core/evaluation/evaluation.h"
+#include "core/base/result.h"
 
 namespace st {
 

@@ -1,5 +1,5 @@
 // scopetrack-eval SEQ OUT [--json]: the figures of a tracker run against the
-// sequence's ground truth (see core/evaluation.h for the definitions).
+// sequence's ground truth (see core/evaluation/evaluation.h for the definitions).
 #include <cstdio>
 #include <cstring>
 

@@ -12,7 +12,7 @@
 #include <cstring>
 #include <span>
 
-#include "hal/stream_protocol.h"
+#include "hal/stream/stream_protocol.h"
 #include "tools/console/console_session.h"
 
 namespace {

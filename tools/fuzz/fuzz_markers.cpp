@@ -3,7 +3,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "core/trajectory.h"
+#include "core/formats/trajectory.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const auto markers = st::parse_markers(std::string_view(reinterpret_cast<const char*>(data), size));

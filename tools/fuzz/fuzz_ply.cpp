@@ -3,7 +3,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "core/mesh_io.h"
+#include "core/formats/mesh_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   st::Result<st::Mesh> m = st::parse_ply(std::string_view(reinterpret_cast<const char*>(data), size));

@@ -3,7 +3,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "core/sequence.h"
+#include "core/formats/sequence.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const st::Result<st::SequenceConfig> c =

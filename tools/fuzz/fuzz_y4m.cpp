@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "core/y4m.h"
+#include "core/formats/y4m.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   std::string_view bytes(reinterpret_cast<const char*>(data), size);

@@ -6,8 +6,8 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "core/evaluation.h"
-#include "hal/y4m_reader.h"
+#include "core/evaluation/evaluation.h"
+#include "hal/capture/y4m_reader.h"
 #include "tools/overlay/run_output.h"
 #include "tools/overlay/video_sink.h"
 

@@ -15,11 +15,11 @@
 #include <optional>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/rasterizer.h"
-#include "core/result.h"
-#include "core/trajectory.h"
-#include "hal/sequence_loader.h"
+#include "core/geometry/camera.h"
+#include "core/raster/rasterizer.h"
+#include "core/base/result.h"
+#include "core/formats/trajectory.h"
+#include "hal/storage/sequence_loader.h"
 #include "tools/overlay/overlay_draw.h"
 
 namespace st::overlay {

@@ -9,7 +9,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/image.h"
+#include "core/image/image.h"
 
 namespace st::overlay {
 

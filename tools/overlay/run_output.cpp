@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "hal/file_io.h"
+#include "hal/storage/file_io.h"
 
 namespace st::overlay {
 

@@ -7,9 +7,9 @@
 #include <string_view>
 #include <vector>
 
-#include "core/result.h"
-#include "core/se3.h"
-#include "core/trajectory.h"
+#include "core/base/result.h"
+#include "core/geometry/se3.h"
+#include "core/formats/trajectory.h"
 
 namespace st::overlay {
 

@@ -7,9 +7,9 @@
 #include <filesystem>
 #include <string>
 
-#include "core/image.h"
-#include "core/result.h"
-#include "core/y4m.h"
+#include "core/image/image.h"
+#include "core/base/result.h"
+#include "core/formats/y4m.h"
 
 namespace st::overlay {
 

@@ -9,11 +9,11 @@
 #include <filesystem>
 #include <string>
 
-#include "core/closest_point.h"
-#include "core/sequence.h"
-#include "core/text_scan.h"
-#include "hal/file_io.h"
-#include "hal/mesh_file.h"
+#include "core/mesh/closest_point.h"
+#include "core/formats/sequence.h"
+#include "core/formats/text_scan.h"
+#include "hal/storage/file_io.h"
+#include "hal/storage/mesh_file.h"
 #include "registration.h"
 
 namespace {

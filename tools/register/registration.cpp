@@ -5,10 +5,10 @@
 #include <cmath>
 #include <limits>
 
-#include "core/correspondences.h"
-#include "core/p3p.h"
-#include "core/pose_solver.h"
-#include "core/text_scan.h"
+#include "core/pose/correspondences.h"
+#include "core/pose/p3p.h"
+#include "core/pose/pose_solver.h"
+#include "core/formats/text_scan.h"
 
 namespace st {
 

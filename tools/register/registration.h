@@ -6,7 +6,7 @@
 // cannot pull the pose). The paper reaches the global optimum by branch and
 // bound; with the handful of pairs a person picks, every minimal subset can
 // be tried instead: P3P on each triple (up to 4 poses), scored on all
-// pairs, the best refined by LM with Huber loss (core/pose_solver.h). The
+// pairs, the best refined by LM with Huber loss (core/pose/pose_solver.h). The
 // search is exhaustive over the triples, so it does not depend on a
 // starting pose.
 //
@@ -17,9 +17,9 @@
 #include <string_view>
 #include <vector>
 
-#include "core/camera.h"
-#include "core/result.h"
-#include "core/se3.h"
+#include "core/geometry/camera.h"
+#include "core/base/result.h"
+#include "core/geometry/se3.h"
 
 namespace st {
 

@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <functional>
 
-#include "core/mesh.h"
+#include "core/mesh/mesh.h"
 
 namespace st::sim {
 

@@ -8,7 +8,7 @@
 #include <string>
 #include <string_view>
 
-#include "core/text_scan.h"
+#include "core/formats/text_scan.h"
 #include "tools/sim/organ_shapes.h"
 #include "tools/sim/sim_run.h"
 

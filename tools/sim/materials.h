@@ -9,7 +9,7 @@
 
 #include <cstdint>
 
-#include "core/se3.h"
+#include "core/geometry/se3.h"
 #include "tools/sim/noise.h"
 
 namespace st::sim {

@@ -7,8 +7,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/mesh.h"
-#include "core/se3.h"
+#include "core/mesh/mesh.h"
+#include "core/geometry/se3.h"
 
 namespace st::sim {
 

@@ -13,8 +13,8 @@
 #include <cstdint>
 #include <string_view>
 
-#include "core/mesh.h"
-#include "core/result.h"
+#include "core/mesh/mesh.h"
+#include "core/base/result.h"
 
 namespace st::sim {
 

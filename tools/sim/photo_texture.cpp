@@ -6,7 +6,7 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "hal/y4m_reader.h"
+#include "hal/capture/y4m_reader.h"
 #include "tools/sim/corner_density.h"
 
 namespace st::sim {

@@ -23,8 +23,8 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/result.h"
-#include "core/se3.h"
+#include "core/base/result.h"
+#include "core/geometry/se3.h"
 
 namespace st::sim {
 

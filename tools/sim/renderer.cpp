@@ -5,7 +5,7 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "core/capacity.h"
+#include "core/base/capacity.h"
 #include "tools/sim/rng.h"
 
 namespace st::sim {

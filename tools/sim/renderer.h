@@ -16,9 +16,9 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/camera.h"
-#include "core/rasterizer.h"
-#include "core/result.h"
+#include "core/geometry/camera.h"
+#include "core/raster/rasterizer.h"
+#include "core/base/result.h"
 #include "tools/sim/materials.h"
 #include "tools/sim/photo_texture.h"
 #include "tools/sim/scenario.h"

@@ -8,8 +8,8 @@
 #include <string>
 #include <string_view>
 
-#include "core/result.h"
-#include "core/se3.h"
+#include "core/base/result.h"
+#include "core/geometry/se3.h"
 #include "tools/sim/noise.h"
 #include "tools/sim/scene.h"
 

@@ -2,8 +2,8 @@
 
 #include <algorithm>
 
-#include "core/capacity.h"
-#include "hal/mesh_file.h"
+#include "core/base/capacity.h"
+#include "hal/storage/mesh_file.h"
 #include "tools/sim/mesh_ops.h"
 
 namespace st::sim {

@@ -11,9 +11,9 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/mesh.h"
-#include "core/result.h"
-#include "core/trajectory.h"
+#include "core/mesh/mesh.h"
+#include "core/base/result.h"
+#include "core/formats/trajectory.h"
 #include "tools/sim/organ_shapes.h"
 #include "tools/sim/renderer.h"
 #include "tools/sim/scenario.h"

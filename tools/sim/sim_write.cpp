@@ -4,11 +4,11 @@
 #include <cstdio>
 #include <unistd.h>
 
-#include "core/sequence.h"
-#include "core/y4m.h"
-#include "hal/file_io.h"
-#include "hal/mesh_file.h"
-#include "hal/y4m_writer.h"
+#include "core/formats/sequence.h"
+#include "core/formats/y4m.h"
+#include "hal/storage/file_io.h"
+#include "hal/storage/mesh_file.h"
+#include "hal/storage/y4m_writer.h"
 #include "tools/sim/sim_run.h"
 #include "tools/sim/yuv.h"
 

@@ -1,0 +1,78 @@
+// ImagePyramid: N levels, each 1/scale_factor the size of the one above
+// (bilinear, chained from the previous level like cv::ORB), plus a smoothed
+// copy of every level (7-tap Gaussian, sigma ~2) that rBRIEF samples
+// (stored with the level-0 row stride).
+//
+// configure() allocates every level once; build() allocates nothing.
+// Level 0 is copied so that the pyramid owns every pixel it hands out (the
+// caller's frame buffer may be re-queued to the camera right after).
+// Single-threaded: one instance per thread.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "core/base/capacity.h"
+#include "core/image/image.h"
+#include "core/base/result.h"
+
+namespace st {
+
+class ImagePyramid {
+ public:
+  // levels in [1, kMaxPyramidLevels], scale_factor in (1, 2].
+  Status configure(int width, int height, int levels, float scale_factor);
+  // image must be width x height (as configured); returns false otherwise.
+  bool build(GrayView image);
+  // The levels only, without smoothing: smoothed(k) is then valid only in
+  // the tiles passed to smooth_tiles() afterwards. Allocates nothing.
+  bool build_levels(GrayView image);
+  // Smooths the kSmoothTilePx x kSmoothTilePx tiles of level k whose byte in
+  // tiles (tiles_x per row) is non-zero; bit-identical to the whole-level
+  // smoothing of build() there. Allocates nothing.
+  // 16: ~25% fewer pixels smoothed than 32 (for patches of radius 15).
+  static constexpr int kSmoothTilePx = 16;
+  void smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x);
+
+  int levels() const { return levels_; }
+  float scale(int level) const { return scale_[level]; }  // level-k pixel * scale = level-0 pixel
+  GrayView level(int k) const { return levels_img_[k].cview(); }
+  // Smoothed levels share one row stride (the level-0 width), so rBRIEF
+  // steps through all of them with one table of pixel offsets.
+  GrayView smoothed(int k) const {
+    return GrayView(smooth_img_[k].data(), levels_img_[k].width(), levels_img_[k].height(), width_);
+  }
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+ private:
+  struct ResizeTables {  // bilinear source index and 8-bit weight per output column/row
+    std::vector<std::int32_t> x0, y0;
+    std::vector<std::uint8_t> wx, wy;  // weight of the second sample, 0..128
+    std::vector<std::int16_t> wpair;   // per output column: (128 - wx, wx)
+  };
+  void resize_level(int k);
+  ImageView<std::uint8_t> smooth_view(int k) {
+    return ImageView<std::uint8_t>(smooth_img_[k].data(), levels_img_[k].width(),
+                                   levels_img_[k].height(), width_);
+  }
+  static void horizontal_blend(const std::uint16_t* tmp, const ResizeTables& t, std::uint8_t* out,
+                               int width);
+  std::array<Image<std::uint8_t>, kMaxPyramidLevels> levels_img_;
+  std::array<Image<std::uint8_t>, kMaxPyramidLevels> smooth_img_;
+  std::array<ResizeTables, kMaxPyramidLevels> tables_;
+  std::array<float, kMaxPyramidLevels> scale_{};
+  std::vector<std::uint16_t> row_tmp_;  // one vertically blended row (resize)
+  std::vector<std::uint8_t> blur_tmp_;  // one vertically blurred row + padding (smoothing)
+  int levels_ = 0;
+  int width_ = 0;
+  int height_ = 0;
+};
+
+// 7-tap separable Gaussian (sigma ~2, integer weights summing to 256) of src
+// into dst (same size); borders replicate. tmp must hold width + 6 bytes.
+// Allocation-free; SIMD through OpenCV universal intrinsics where available.
+void gaussian_blur7(GrayView src, ImageView<std::uint8_t> dst, std::uint8_t* tmp);
+
+}  // namespace st

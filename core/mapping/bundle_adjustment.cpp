@@ -1,0 +1,669 @@
+#include "core/mapping/bundle_adjustment.h"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "core/base/capacity.h"
+#include "core/geometry/reprojection.h"
+
+namespace st {
+
+namespace {
+
+// The linearization of one pose block, recomputed only when the block's
+// delta changes: Ceres evaluates all ~1000 residuals of a pose at the same
+// values, so exp(delta) * T0 and the left Jacobian of exp are computed once
+// per pose and evaluation instead of once per residual. Mutable from the
+// const Evaluate(): safe because the solver runs single-threaded.
+class PoseCache {
+ public:
+  void reset(const SE3& T0_camera_model) {
+    T0_ = T0_camera_model;
+    delta_[0] = std::numeric_limits<double>::quiet_NaN();  // NaN != anything: recompute
+    held_.T_camera_model = T0_camera_model;
+  }
+  // The linearization at delta = 0, for a held pose (not a parameter block).
+  const PoseLinearization& held() const { return held_; }
+  const PoseLinearization& at(const double* delta) const {
+    bool same = true;
+    for (int k = 0; k < 6; ++k) same = same && delta_[k] == delta[k];
+    if (!same) {
+      for (int k = 0; k < 6; ++k) delta_[k] = delta[k];
+      pose_linearization(T0_, delta, &lin_);
+    }
+    return lin_;
+  }
+  const SE3& T0() const { return T0_; }
+
+ private:
+  SE3 T0_;
+  mutable double delta_[6] = {std::numeric_limits<double>::quiet_NaN()};
+  mutable PoseLinearization lin_;
+  PoseLinearization held_;  // identity left Jacobian, at_origin
+};
+
+// Reprojection residual of one observation. The pose of a held keyframe
+// (fixed, or the gauge keyframe) is not a parameter block: the residual then
+// has the point as its only block (the same rows and point Jacobian; Ceres
+// gathers, checks and skips one block less per residual and evaluation, and
+// the held poses are not in the problem at all). The block sizes are set
+// per solve into a vector reserved at construction: no allocation.
+class ReprojectionCost final : public ceres::CostFunction {
+ public:
+  ReprojectionCost() {
+    set_num_residuals(2);
+    mutable_parameter_block_sizes()->reserve(3);  // [pose,] point[, focal scale]
+  }
+  void set(const Pinhole& K, const Vec2& px_ideal, double info, double min_depth_mm, const PoseCache* pose,
+           bool held, bool focal = false) {
+    pose_ = pose;
+    K_ = K;
+    px_ = px_ideal;
+    sqrt_info_ = std::sqrt(info);
+    min_depth_mm_ = min_depth_mm;
+    held_ = held;
+    focal_ = focal;
+    std::vector<std::int32_t>& sizes = *mutable_parameter_block_sizes();
+    sizes.clear();
+    if (!held) sizes.push_back(6);
+    sizes.push_back(3);
+    if (focal) sizes.push_back(1);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    const auto evaluate = [&](const Pinhole& K) {
+      if (held_)
+        return reprojection_cost(K, px_, sqrt_info_, min_depth_mm_, pose_->held(), parameters[0], residuals, nullptr,
+                                 jacobians ? jacobians[0] : nullptr);
+      return reprojection_cost(K, px_, sqrt_info_, min_depth_mm_, pose_->at(parameters[0]), parameters[1], residuals,
+                               jacobians ? jacobians[0] : nullptr, jacobians ? jacobians[1] : nullptr);
+    };
+    if (!focal_) return evaluate(K_);
+    // Focal lengths scaled by the last block's s (principal point kept):
+    // r = sqrt_info (s f xn + c - q), so dr/ds = sqrt_info f xn = (r + sqrt_info (q - c)) / s.
+    const int b = held_ ? 1 : 2;
+    const double scale = parameters[b][0];
+    Pinhole Ks = K_;
+    Ks.fx *= scale;
+    Ks.fy *= scale;
+    const bool ok = evaluate(Ks);
+    if (ok && jacobians && jacobians[b]) {
+      jacobians[b][0] = (residuals[0] + sqrt_info_ * (px_.x() - K_.cx)) / scale;
+      jacobians[b][1] = (residuals[1] + sqrt_info_ * (px_.y() - K_.cy)) / scale;
+    }
+    return ok;
+  }
+
+ private:
+  const PoseCache* pose_ = nullptr;
+  Pinhole K_;
+  Vec2 px_ = Vec2::Zero();
+  double sqrt_info_ = 1, min_depth_mm_ = 1;
+  bool held_ = false, focal_ = false;
+};
+
+class ShapeCost final : public ceres::SizedCostFunction<3, 3> {
+ public:
+  void set(const ClosestPointIndex* surface, double w_shape) {
+    surface_ = surface;
+    sqrt_w_ = std::sqrt(w_shape);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    return surface_ && shape_cost(*surface_, sqrt_w_, parameters[0], residuals, jacobians ? jacobians[0] : nullptr);
+  }
+
+ private:
+  const ClosestPointIndex* surface_ = nullptr;
+  double sqrt_w_ = 0;
+};
+
+class PlaneCost final : public ceres::SizedCostFunction<2, 3> {
+ public:
+  void set(const ShapePlane* plane, double w_shape) {
+    plane_ = plane;
+    sqrt_w_ = std::sqrt(w_shape);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+    plane_cost(*plane_, sqrt_w_, parameters[0], residuals, jacobians ? jacobians[0] : nullptr);
+    return true;
+  }
+
+ private:
+  const ShapePlane* plane_ = nullptr;
+  double sqrt_w_ = 0;
+};
+
+// The prior on one pose block: r = W (delta + e0), e0 = log(T0 T_prior^-1)
+// (the handed-over pose's offset from the prior), W = diag(1/sigma_rad x 3,
+// 1/sigma_mm x 3). First order in delta: log(exp(delta) X) = delta + log(X)
+// up to a term in |delta| |e0| (a window's delta of a few mrad times a
+// registration error of a few degrees or mm: far below the sigmas).
+class PosePriorCost final : public ceres::SizedCostFunction<6, 6> {
+ public:
+  void set(const SE3& T0_camera_model, const SE3& T_prior, double sigma_rad, double sigma_mm) {
+    e0_ = (T0_camera_model * T_prior.inverse()).log();
+    for (int k = 0; k < 3; ++k) {
+      w_[k] = 1.0 / sigma_rad;
+      w_[k + 3] = 1.0 / sigma_mm;
+    }
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    for (int k = 0; k < 6; ++k) residuals[k] = w_[k] * (parameters[0][k] + e0_[k]);
+    if (jacobians && jacobians[0]) {
+      for (int k = 0; k < 36; ++k) jacobians[0][k] = 0.0;
+      for (int k = 0; k < 6; ++k) jacobians[0][k * 6 + k] = w_[k];
+    }
+    return true;
+  }
+
+ private:
+  Vec6 e0_ = Vec6::Zero();
+  double w_[6] = {1, 1, 1, 1, 1, 1};
+};
+
+// Stops the solve once the gradient (max norm) has fallen below a fraction
+// of its value at the start. Ceres' own tests are absolute (gradient) or
+// need the next step solved and evaluated (function, parameter tolerance):
+// on the bench window the last of 3 steps changed the cost by 2e-7 and cost
+// a linear solve and an evaluation (~20% of the solve). Thread: the solver's.
+class RelativeGradientStop final : public ceres::IterationCallback {
+ public:
+  explicit RelativeGradientStop(double tolerance) : tolerance_(tolerance) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    if (s.iteration == 0) {
+      start_norm_ = s.gradient_max_norm;
+      return ceres::SOLVER_CONTINUE;
+    }
+    if (s.step_is_successful && s.gradient_max_norm <= tolerance_ * start_norm_)
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  double tolerance_ = 0, start_norm_ = 0;
+};
+
+}  // namespace
+
+struct BundleAdjuster::Impl {
+  std::unique_ptr<ceres::LossFunction> reprojection_loss, shape_loss;
+  // Cost functions are not copyable: fixed arrays sized in configure(), not
+  // owned by the per-solve Problem.
+  std::unique_ptr<ReprojectionCost[]> reprojection_costs;
+  std::unique_ptr<ShapeCost[]> shape_costs;
+  std::unique_ptr<PlaneCost[]> plane_costs;
+  PosePriorCost prior_cost;                  // the job's pose prior (at most one)
+  std::unique_ptr<PoseCache[]> pose_caches;  // per job keyframe, kMaxKeyframes
+  std::unique_ptr<double[]> deltas;          // 6 per job keyframe: the pose blocks Ceres solves
+  std::unique_ptr<RelativeGradientStop> gradient_stop;
+  ceres::Problem::Options problem_options;
+  ceres::Solver::Options solver_options;
+  ceres::Problem* problem = nullptr;  // during solve() only
+  double focal_scale[1] = {1.0};      // the focal test's block (FocalTest::kFree)
+};
+
+BundleAdjuster::BundleAdjuster() = default;
+BundleAdjuster::~BundleAdjuster() = default;
+
+Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mesh& mesh, const Pinhole& K,
+                                 int max_points, int max_observations) {
+  configured_ = false;
+  if (!(options.w_shape >= 0) || !std::isfinite(options.w_shape) || !(options.shape_huber_mm > 0) ||
+      !(options.reprojection_huber > 0) || options.max_iterations < 1 ||
+      !(options.max_time_s > 0) || !(options.min_depth_mm > 0) ||
+      !(options.max_point_shift_mm > 0) || options.surface_distance_samples < 0 ||
+      options.max_observations_per_point < 0 || !(options.relative_gradient_tolerance >= 0) ||
+      !(options.relative_gradient_tolerance < 1) ||
+      options.max_observations_per_point > kMaxObservationsPerPointCap ||
+      options.max_fixed_observations_per_point < 0 ||
+      options.max_fixed_observations_per_point > kMaxObservationsPerPointCap ||
+      options.min_observations_per_point < 1 || options.min_observations_per_point > 255 ||
+      !(options.plane_reuse_mm >= 0) || !(options.prior_release_f >= 0) ||
+      !std::isfinite(options.prior_release_f))
+    return make_error("bundle adjustment: options out of range (w_shape >= 0, thresholds and limits > 0)");
+  if (!pinhole_is_usable(K)) return make_error("bundle adjustment: the pinhole is not usable");
+  if (max_points < 1 || max_points > kMaxMapPoints || max_observations < 1)
+    return make_error("bundle adjustment: capacities out of range (" + std::to_string(max_points) + " points, " +
+                      std::to_string(max_observations) + " observations)");
+  if (Status s = surface_.configure(mesh); !s.ok()) return make_error("bundle adjustment: " + s.message());
+  options_ = options;
+  K_ = K;
+  impl_ = std::make_unique<Impl>();
+  impl_->reprojection_loss = std::make_unique<ceres::HuberLoss>(options.reprojection_huber);
+  // The residual is sqrt(w_shape) * distance: the threshold in its units.
+  impl_->shape_loss = std::make_unique<ceres::HuberLoss>(std::sqrt(options.w_shape) * options.shape_huber_mm);
+  impl_->reprojection_costs = std::make_unique<ReprojectionCost[]>(static_cast<std::size_t>(max_observations));
+  impl_->shape_costs = std::make_unique<ShapeCost[]>(static_cast<std::size_t>(max_points));
+  impl_->plane_costs = std::make_unique<PlaneCost[]>(static_cast<std::size_t>(max_points));
+  impl_->pose_caches = std::make_unique<PoseCache[]>(static_cast<std::size_t>(kMaxKeyframes));
+  impl_->deltas = std::make_unique<double[]>(static_cast<std::size_t>(kMaxKeyframes) * 6);
+  planes_.assign(static_cast<std::size_t>(max_points), ShapePlane{});
+  plane_cache_.assign(static_cast<std::size_t>(max_points), CachedPlane{});
+  for (int i = 0; i < max_points; ++i) {
+    impl_->shape_costs[static_cast<std::size_t>(i)].set(&surface_, options.w_shape);
+    impl_->plane_costs[static_cast<std::size_t>(i)].set(&planes_[static_cast<std::size_t>(i)], options.w_shape);
+  }
+  max_points_ = max_points;
+  max_observations_ = max_observations;
+  point_observed_.assign(static_cast<std::size_t>(max_points), 0);
+  held_.assign(static_cast<std::size_t>(kMaxKeyframes), 0);
+  saved_poses_.assign(static_cast<std::size_t>(kMaxKeyframes) * kPoseParams, 0.0);
+  saved_points_.assign(static_cast<std::size_t>(max_points) * 3, 0.0);
+  newest_frames_.assign(static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_observations_per_point)), -1);
+  newest_fixed_frames_.assign(
+      static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_fixed_observations_per_point)), -1);
+  ceres::Problem::Options& po = impl_->problem_options;
+  po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  po.disable_all_safety_checks = true;  // valid() checked the job; saves ~1/3 of the build
+  ceres::Solver::Options& so = impl_->solver_options;
+  so.linear_solver_type = ceres::DENSE_SCHUR;
+  so.num_threads = 1;
+  so.jacobi_scaling = false;  // same iterations and results on the bench window, ~1 ms less (column scaling passes)
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+  so.max_num_iterations = options.max_iterations;
+  so.max_solver_time_in_seconds = options.max_time_s;
+  if (options.relative_gradient_tolerance > 0) {
+    impl_->gradient_stop = std::make_unique<RelativeGradientStop>(options.relative_gradient_tolerance);
+    so.callbacks.push_back(impl_->gradient_stop.get());
+  }
+  configured_ = true;
+  return Status::Ok();
+}
+
+// Indices in range, values finite, counts within the pools.
+bool BundleAdjuster::valid(const BaJob& job) const {
+  if (job.point_count > max_points_ || job.observation_count > max_observations_ || job.keyframe_count < 1 ||
+      job.keyframe_count > kMaxKeyframes ||
+      job.point_count < 1)
+    return false;
+  for (int i = 0; i < job.keyframe_count; ++i)
+    if (!job.pose(i).all_finite()) return false;
+  for (int i = 0; i < job.point_count; ++i)
+    if (!job.point(i).allFinite()) return false;
+  for (int i = 0; i < job.observation_count; ++i) {
+    const BaObservation& o = job.observations[static_cast<std::size_t>(i)];
+    if (o.keyframe < 0 || o.keyframe >= job.keyframe_count || o.point < 0 || o.point >= job.point_count ||
+        !std::isfinite(o.x_ideal) || !std::isfinite(o.y_ideal) || !(o.info > 0) || !std::isfinite(o.info))
+      return false;
+  }
+  const BaPosePrior& prior = job.prior;
+  if (prior.keyframe >= job.keyframe_count || !pose_from_params(prior.pose).all_finite())
+    return false;
+  return prior.keyframe < 0 || pose_prior_sigmas_usable(prior.sigma_rad, prior.sigma_mm);
+}
+
+// Adds every block and residual to impl_->problem; returns the number of
+// reprojection residuals.
+int BundleAdjuster::build(BaJob* job, bool free_prior, FocalTest focal) {
+  const bool focal_test = focal != FocalTest::kNone, free_focal = focal == FocalTest::kFree;
+  ceres::Problem& problem = *impl_->problem;
+  int fixed = 0, oldest = 0;
+  for (int i = 0; i < job->keyframe_count; ++i) {
+    const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
+    impl_->pose_caches[static_cast<std::size_t>(i)].reset(job->pose(i));
+    std::fill(pose_delta_block(i), pose_delta_block(i) + 6, 0.0);
+    const bool hold = k.fixed && !focal_test;
+    held_[static_cast<std::size_t>(i)] = hold ? 1 : 0;
+    fixed += hold ? 1 : 0;
+    if (k.frame < job->keyframes[static_cast<std::size_t>(oldest)].frame) oldest = i;
+  }
+  // A job with a pose prior is solved twice (solve()). Held: the prior's
+  // keyframe is held where it is. Freed: with the shape residual on, the
+  // prior fixes the frame itself (the mesh fixes the structure's pose and
+  // scale, the prior the directions the observations leave open), so no
+  // keyframe is held and the prior's keyframe moves too. Without a prior
+  // the oldest keyframe is held for the gauge when the job holds none.
+  // The focal test's solves hold nothing and take no prior: the mesh alone
+  // fixes the gauge, so that a rigid misplacement of the whole map (a
+  // coarse registration) is taken up by the poses in both of them, not by
+  // the focal length in one (held, a 2 deg / 4 mm registration looked like
+  // focal lengths 6 % short at F 195).
+  const int prior_kf = focal_test ? -1 : job->prior.keyframe;
+  const bool use_prior = free_prior && prior_kf >= 0 && !held_[static_cast<std::size_t>(prior_kf)];
+  if (prior_kf >= 0 && !free_prior && !held_[static_cast<std::size_t>(prior_kf)]) {
+    held_[static_cast<std::size_t>(prior_kf)] = 1;
+    ++fixed;
+  }
+  if (fixed == 0 && !use_prior && !focal_test) {  // gauge: hold the oldest keyframe
+    held_[static_cast<std::size_t>(oldest)] = 1;
+    fixed = 1;
+  }
+  // Held poses stay out of the problem (their residuals take the point only).
+  for (int i = 0; i < job->keyframe_count; ++i)
+    if (!held_[static_cast<std::size_t>(i)]) problem.AddParameterBlock(pose_delta_block(i), 6);
+  if (use_prior) {
+    impl_->prior_cost.set(job->pose(prior_kf), pose_from_params(job->prior.pose),
+                          job->prior.sigma_rad, job->prior.sigma_mm);
+    problem.AddResidualBlock(&impl_->prior_cost, nullptr, pose_delta_block(prior_kf));
+  }
+  job->summary.fixed_keyframes = fixed;
+  if (options_.max_observations_per_point > 0)
+    newest_frames_per_point(*job, options_.max_observations_per_point, false, &newest_frames_);
+  if (options_.max_fixed_observations_per_point > 0)
+    newest_frames_per_point(*job, options_.max_fixed_observations_per_point, true, &newest_fixed_frames_);
+  select_points(job);
+  if (free_focal) {
+    impl_->focal_scale[0] = 1.0;
+    problem.AddParameterBlock(impl_->focal_scale, 1);
+  }
+  int used = 0;
+  for (int i = 0; i < job->observation_count; ++i) {
+    const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
+    if (!point_observed_[static_cast<std::size_t>(o.point)] || !usable_observation(*job, o)) continue;
+    ReprojectionCost& c = impl_->reprojection_costs[static_cast<std::size_t>(used++)];
+    const bool held = held_[static_cast<std::size_t>(o.keyframe)] != 0;
+    c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm,
+          &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)], held, free_focal);
+    double* point = job->points[static_cast<std::size_t>(o.point)].p_model;
+    // The residual's blocks: [pose,] point[, focal scale] (ReprojectionCost::set).
+    double* blocks[3];
+    int n_blocks = 0;
+    if (!held) blocks[n_blocks++] = pose_delta_block(o.keyframe);
+    blocks[n_blocks++] = point;
+    if (free_focal) blocks[n_blocks++] = impl_->focal_scale;
+    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), blocks, n_blocks);
+    if (job->keyframes[static_cast<std::size_t>(o.keyframe)].fixed) ++job->summary.fixed_observations;
+  }
+  if (options_.w_shape > 0) add_shape_residuals(job);
+  return used;
+}
+
+// point_observed_[i] = 1 for the points that join the problem: at least
+// min_observations_per_point usable observations. With one view a point's 2
+// reprojection rows (+1 shape row) are met exactly by its own 3 unknowns for
+// any pose, so it tells the poses nothing (and a point made from one
+// keyframe's ray and the mesh depth already sits at that optimum); tracker
+// windows hold thousands of such points (half the blocks of a solve).
+void BundleAdjuster::select_points(BaJob* job) {
+  for (int i = 0; i < job->point_count; ++i) point_observed_[static_cast<std::size_t>(i)] = 0;
+  for (int i = 0; i < job->observation_count; ++i) {  // saturating counts
+    const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
+    std::uint8_t& n = point_observed_[static_cast<std::size_t>(o.point)];
+    if (n < 255 && usable_observation(*job, o)) ++n;
+  }
+  for (int i = 0; i < job->point_count; ++i) {
+    std::uint8_t& n = point_observed_[static_cast<std::size_t>(i)];
+    if (n > 0 && n < options_.min_observations_per_point) ++job->summary.points_skipped;
+    n = n >= options_.min_observations_per_point ? 1 : 0;
+  }
+}
+
+// Per point, the frames of its cap newest observing keyframes (only the
+// fixed ones when fixed_only; descending, -1 padded) by insertion into a
+// fixed row: allocates nothing.
+void BundleAdjuster::newest_frames_per_point(const BaJob& job, int cap, bool fixed_only,
+                                             std::vector<std::int32_t>* rows) const {
+  const auto n = static_cast<std::size_t>(cap);
+  std::fill(rows->begin(), rows->begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(job.point_count) * n), -1);
+  for (int i = 0; i < job.observation_count; ++i) {
+    const BaObservation& o = job.observations[static_cast<std::size_t>(i)];
+    const BaKeyframe& k = job.keyframes[static_cast<std::size_t>(o.keyframe)];
+    if (fixed_only && !k.fixed) continue;
+    std::int32_t frame = k.frame;
+    std::int32_t* row = &(*rows)[static_cast<std::size_t>(o.point) * n];
+    for (std::size_t j = 0; j < n; ++j)
+      if (frame > row[j]) std::swap(frame, row[j]);
+  }
+}
+
+// Passes the caps and is in front of its keyframe (Ceres needs a valid start).
+bool BundleAdjuster::usable_observation(const BaJob& job, const BaObservation& o) const {
+  if (!keep_observation(job, o)) return false;
+  const Vec3 p_camera = impl_->pose_caches[static_cast<std::size_t>(o.keyframe)].T0() * job.point(o.point);
+  return p_camera.z() > options_.min_depth_mm;
+}
+
+// The observation caps (the rows hold the newest frames; keyframe frames
+// are distinct, so at most cap observations of a point pass each).
+bool BundleAdjuster::keep_observation(const BaJob& job, const BaObservation& o) const {
+  const BaKeyframe& k = job.keyframes[static_cast<std::size_t>(o.keyframe)];
+  const auto point = static_cast<std::size_t>(o.point);
+  const int cap = options_.max_observations_per_point, cap_fixed = options_.max_fixed_observations_per_point;
+  if (cap > 0 && k.frame < newest_frames_[point * static_cast<std::size_t>(cap) + static_cast<std::size_t>(cap - 1)])
+    return false;
+  if (k.fixed && cap_fixed > 0 &&
+      k.frame < newest_fixed_frames_[point * static_cast<std::size_t>(cap_fixed) + static_cast<std::size_t>(cap_fixed - 1)])
+    return false;
+  return true;
+}
+
+void BundleAdjuster::add_shape_residuals(BaJob* job) {
+  ceres::Problem& problem = *impl_->problem;
+  for (int i = 0; i < job->point_count; ++i) {
+    const auto is = static_cast<std::size_t>(i);
+    if (!point_observed_[is]) continue;
+    double* f = job->points[is].p_model;
+    if (options_.exact_shape) {
+      problem.AddResidualBlock(&impl_->shape_costs[is], impl_->shape_loss.get(), f);
+    } else if (plane_for(job->points[is], &planes_[is], &job->summary.plane_queries)) {
+      problem.AddResidualBlock(&impl_->plane_costs[is], impl_->shape_loss.get(), f);
+    }
+  }
+}
+
+// The tangent plane at p's start value: kept from an earlier solve while p
+// stayed near where it was taken (tracker windows overlap: most points come
+// back unchanged or moved by BA a fraction of a mm), else one query.
+bool BundleAdjuster::plane_for(const BaPoint& p, ShapePlane* plane, int* queries) {
+  const Vec3 f(p.p_model[0], p.p_model[1], p.p_model[2]);
+  const bool cacheable = options_.plane_reuse_mm > 0 && p.id >= 0 && p.id < static_cast<int>(plane_cache_.size());
+  if (cacheable) {
+    const CachedPlane& c = plane_cache_[static_cast<std::size_t>(p.id)];
+    if (c.valid && c.created_frame == p.created_frame && (c.at - f).norm() <= options_.plane_reuse_mm) {
+      *plane = c.plane;
+      return true;
+    }
+  }
+  ++*queries;
+  if (!shape_plane(surface_, f, plane)) return false;
+  if (cacheable) plane_cache_[static_cast<std::size_t>(p.id)] = CachedPlane{true, p.created_frame, f, *plane};
+  return true;
+}
+
+void BundleAdjuster::forget_planes() {
+  for (CachedPlane& c : plane_cache_) c.valid = false;
+}
+
+// Points first (eliminated), poses second: the Schur ordering Ceres would
+// find, given instead of searched for (its independent-set search builds a
+// graph of the whole problem on every solve).
+static std::shared_ptr<ceres::ParameterBlockOrdering> schur_ordering(BaJob* job,
+                                                                     const std::vector<std::uint8_t>& point_observed,
+                                                                     const std::vector<std::uint8_t>& held,
+                                                                     double* deltas) {
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  for (int i = 0; i < job->point_count; ++i)
+    if (point_observed[static_cast<std::size_t>(i)]) ordering->AddElementToGroup(job->points[static_cast<std::size_t>(i)].p_model, 0);
+  for (int i = 0; i < job->keyframe_count; ++i)
+    if (!held[static_cast<std::size_t>(i)]) ordering->AddElementToGroup(deltas + 6 * i, 1);
+  return ordering;
+}
+
+bool BundleAdjuster::solve_once(BaJob* job, bool free_prior, int max_iterations, double max_time_s,
+                                SolveStats* stats, FocalTest focal) {
+  job->summary = BaSummary{};
+  ceres::Problem problem(impl_->problem_options);
+  impl_->problem = &problem;
+  const int used = build(job, free_prior, focal);
+  impl_->problem = nullptr;
+  job->summary.keyframes = job->keyframe_count;
+  job->summary.points = job->point_count;
+  job->summary.observations = used;
+  if (used == 0) return false;
+  ceres::Solver::Options so = impl_->solver_options;
+  so.linear_solver_ordering = schur_ordering(job, point_observed_, held_, impl_->deltas.get());
+  if (focal == FocalTest::kFree) so.linear_solver_ordering->AddElementToGroup(impl_->focal_scale, 1);
+  if (max_iterations > 0) so.max_num_iterations = max_iterations;
+  if (max_time_s > 0) so.max_solver_time_in_seconds = max_time_s;
+  ceres::Solver::Summary s;
+  ceres::Solve(so, &problem, &s);
+  apply_pose_deltas(job);
+  finish(job, s.initial_cost, s.final_cost, s.total_time_in_seconds, static_cast<int>(s.iterations.size()),
+         s.IsSolutionUsable());
+  if (stats) {
+    stats->residuals = s.num_residuals;
+    stats->parameters = s.num_effective_parameters;
+  }
+  return job->summary.usable;
+}
+
+bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
+  job->summary = BaSummary{};
+  if (!configured_ || !valid(*job)) return false;
+  if (!solve_tested_prior(job, max_iterations, max_time_s)) return false;
+  if (job->test_focal && options_.w_shape > 0) test_focal(job, max_iterations, max_time_s);
+  return job->summary.usable;
+}
+
+// The calibration's focal test: from the solved job, two more solves with
+// the same budget and every keyframe free (see build()), one with the
+// focal lengths held and one with a common scale s of them free; the
+// solution itself is restored after. F = (C_held - C_free) / (C_free / dof), C their final
+// costs (one parameter more): how much better the data fits another focal
+// length. Under a right calibration and Gaussian noise F follows F(1, dof),
+// P(F > 30) ~ 4e-8 for a window's thousands of residuals (see
+// BaSummary::focal_f).
+void BundleAdjuster::test_focal(BaJob* job, int max_iterations, double max_time_s) {
+  const BaSummary kept = job->summary;
+  save_solution(*job);
+  bool ok = solve_once(job, false, max_iterations, max_time_s, nullptr, FocalTest::kHeld);
+  const double held_cost = job->summary.final_cost;
+  int iterations = job->summary.iterations;
+  double solver_ms = job->summary.solver_ms;
+  restore_solution(job);
+  SolveStats stats;
+  ok = solve_once(job, false, max_iterations, max_time_s, &stats, FocalTest::kFree) && ok;
+  const double free_cost = job->summary.final_cost;
+  iterations += job->summary.iterations;
+  solver_ms += job->summary.solver_ms;
+  restore_solution(job);
+  const int dof = stats.residuals - stats.parameters;
+  job->summary = kept;
+  job->summary.iterations += iterations;
+  job->summary.solver_ms += solver_ms;
+  job->summary.focal_tested = ok && dof > 0 && free_cost > 0;
+  if (!job->summary.focal_tested) return;
+  job->summary.focal_scale = impl_->focal_scale[0];
+  job->summary.focal_f = std::max(0.0, held_cost - free_cost) / (free_cost / dof);
+}
+
+bool BundleAdjuster::solve_tested_prior(BaJob* job, int max_iterations, double max_time_s) {
+  const int prior_kf = job->prior.keyframe;
+  const bool test_prior = prior_kf >= 0 && options_.w_shape > 0 &&
+                          !job->keyframes[static_cast<std::size_t>(prior_kf)].fixed;
+  if (!test_prior) return solve_once(job, false, max_iterations, max_time_s, nullptr);
+  // 1. The prior's keyframe held (the registration as given).
+  if (!solve_once(job, false, max_iterations, max_time_s, nullptr)) return false;
+  const BaSummary held = job->summary;
+  save_solution(*job);
+  // 2. From there, the prior's keyframe freed. Kept only if the data asks
+  // for it (see BundleAdjusterOptions::prior_release_f).
+  SolveStats stats;
+  const bool ok = solve_once(job, true, max_iterations, max_time_s, &stats);
+  const int dof = stats.residuals - stats.parameters;
+  const double f =
+      ok && dof > 0 && job->summary.final_cost > 0
+          ? ((held.final_cost - job->summary.final_cost) / 6.0) / (job->summary.final_cost / dof)
+          : 0.0;
+  const bool release = ok && (options_.prior_release_f == 0 || f > options_.prior_release_f);
+  if (!release) {
+    restore_solution(job);
+    const int iterations = job->summary.iterations;
+    const double solver_ms = job->summary.solver_ms;
+    job->summary = held;
+    job->summary.iterations += iterations;
+    job->summary.solver_ms += solver_ms;
+  } else {
+    job->summary.iterations += held.iterations;
+    job->summary.solver_ms += held.solver_ms;
+    job->summary.plane_queries += held.plane_queries;
+  }
+  job->summary.prior_tested = true;
+  job->summary.prior_used = release;
+  job->summary.prior_f = f;
+  return job->summary.usable;
+}
+
+void BundleAdjuster::save_solution(const BaJob& job) {
+  for (int i = 0; i < job.keyframe_count; ++i)
+    std::copy_n(job.keyframes[static_cast<std::size_t>(i)].pose, kPoseParams,
+                &saved_poses_[static_cast<std::size_t>(i) * kPoseParams]);
+  for (int i = 0; i < job.point_count; ++i)
+    std::copy_n(job.points[static_cast<std::size_t>(i)].p_model, 3,
+                &saved_points_[static_cast<std::size_t>(i) * 3]);
+}
+
+void BundleAdjuster::restore_solution(BaJob* job) const {
+  for (int i = 0; i < job->keyframe_count; ++i)
+    std::copy_n(&saved_poses_[static_cast<std::size_t>(i) * kPoseParams], kPoseParams,
+                job->keyframes[static_cast<std::size_t>(i)].pose);
+  for (int i = 0; i < job->point_count; ++i)
+    std::copy_n(&saved_points_[static_cast<std::size_t>(i) * 3], 3,
+                job->points[static_cast<std::size_t>(i)].p_model);
+}
+
+double* BundleAdjuster::pose_delta_block(int keyframe) {
+  return &impl_->deltas[static_cast<std::size_t>(keyframe) * 6];
+}
+
+// The solved poses exp(delta) * T0 back into the job's quaternion blocks.
+void BundleAdjuster::apply_pose_deltas(BaJob* job) {
+  for (int i = 0; i < job->keyframe_count; ++i) {
+    const double* d = pose_delta_block(i);
+    Vec6 delta;
+    for (int k = 0; k < 6; ++k) delta[k] = d[k];
+    if (delta.isZero(0.0)) continue;  // fixed, or not moved: keep the handed-over values bit for bit
+    pose_to_params(SE3::exp(delta) * job->pose(i), job->keyframes[static_cast<std::size_t>(i)].pose);
+  }
+}
+
+// Summary, finiteness, and the per-point shift gate (a point moved too far
+// gets its handed-over position back: the tracker keeps it unchanged).
+void BundleAdjuster::finish(BaJob* job, double initial_cost, double final_cost, double total_s, int iterations,
+                            bool usable) {
+  BaSummary& out = job->summary;
+  out.iterations = iterations;
+  out.initial_cost = initial_cost;
+  out.final_cost = final_cost;
+  out.solver_ms = total_s * 1e3;
+  bool finite = true;
+  for (int i = 0; i < job->keyframe_count; ++i) finite = finite && job->pose(i).all_finite();
+  for (int i = 0; i < job->point_count; ++i) {
+    BaPoint& p = job->points[static_cast<std::size_t>(i)];
+    const Vec3 now = job->point(i), before(p.p_initial[0], p.p_initial[1], p.p_initial[2]);
+    if (!now.allFinite()) {
+      finite = false;
+      continue;
+    }
+    if ((now - before).norm() > options_.max_point_shift_mm) {
+      for (int k = 0; k < 3; ++k) p.p_model[k] = p.p_initial[k];
+      ++out.points_rejected;
+    }
+  }
+  out.usable = finite && usable && final_cost <= initial_cost;
+  out.mean_surface_distance_mm = mean_surface_distance(*job, options_.surface_distance_samples);
+}
+
+double BundleAdjuster::mean_surface_distance(const BaJob& job, int max_samples) const {
+  double sum = 0;
+  int n = 0;
+  // A statistic for the log, not an input of the solve: a bounded sample
+  // keeps it off the solve time (all 1000 points of a window: ~1.6 ms).
+  const int step = max_samples > 0 ? std::max(1, (job.point_count + max_samples - 1) / max_samples) : 1;
+  for (int i = 0; i < job.point_count; i += step) {
+    SurfacePoint s;
+    if (surface_.closest(job.point(i), &s)) {
+      sum += s.distance_mm;
+      ++n;
+    }
+  }
+  return n > 0 ? sum / n : -1.0;
+}
+
+}  // namespace st

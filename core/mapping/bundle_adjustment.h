@@ -1,0 +1,170 @@
+// Bounded bundle adjustment of a BaJob (core/mapping/ba_job.h) on a ceres::Problem:
+// robust reprojection residuals (Huber on octave-whitened pixels) for every
+// observation, plus the paper's shape residual w_shape * rho(|f - D(f)|)
+// (Huber in mm) for every point, D from ClosestPointIndex (as a tangent
+// plane taken at the start value, reused across solves while the point
+// stays put). Points seen fewer than twice are left out (no pose
+// information). Keyframe poses are 6-dim left deltas around the handed-over
+// pose (core/mapping/ba_residuals.h); keyframes flagged fixed are held constant
+// (when a job has none, the oldest keyframe is fixed to remove the gauge
+// freedom left when w_shape = 0): a held pose is no parameter block, its
+// residuals take the point alone. A job may put a prior on one keyframe's
+// pose (the tracker: the registration of frame 0); that keyframe is then
+// freed only where the data says the prior is off (prior_release_f).
+// Single-threaded, dense Schur complement (a window has few poses and many
+// points), bounded iterations and solver time, and a stop once the gradient
+// has fallen to a fraction of its start.
+//
+// Memory: the cost-function objects are pooled (sized in configure()) and
+// not owned by the Problem; Ceres itself allocates its Problem, Program and
+// linear-solver workspace on every solve, bounded by the job's size (the
+// bench and tests measure the count). Thread: the mapping thread (one
+// BundleAdjuster per thread; the closest-point index is read-only).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "core/mapping/ba_job.h"
+#include "core/mapping/ba_residuals.h"
+#include "core/geometry/camera.h"
+#include "core/mesh/closest_point.h"
+#include "core/mesh/mesh.h"
+#include "core/base/result.h"
+
+namespace st {
+
+struct BundleAdjusterOptions {
+  double w_shape = 100.0;           // paper: 100; 0 drops the shape residual (ablation)
+  double shape_huber_mm = 1.0;      // Huber threshold of the point-to-mesh distance
+  bool exact_shape = false;         // true: D(f) re-queried at every evaluation; false: tangent
+                                    // plane at the start value (core/mapping/ba_residuals.h)
+  double reprojection_huber = 2.447651936;  // on whitened pixels: sqrt(chi2 95%, 2 DoF)
+  int max_iterations = 10;
+  double relative_gradient_tolerance = 1e-4;  // stop once max|gradient| fell below this fraction of
+                                              // its start value (0: Ceres' own tests only)
+  double max_time_s = 0.05;         // Ceres stops after this much solver time
+  double min_depth_mm = 1.0;        // observations at a smaller depth are left out
+  double max_point_shift_mm = 10.0; // a point moved farther is marked rejected (the
+                                    // tracker keeps its old position)
+  int max_observations_per_point = 0;  // 0: all; else only the newest (keyframe frame)
+                                       // this many per point, <= kMaxObservationsPerPointCap:
+                                       // bounds the Schur work per point (quadratic in it)
+  int min_observations_per_point = 2;  // points with fewer usable observations are left out
+                                       // (unchanged): one view carries no pose information
+  int max_fixed_observations_per_point = 0;  // 0: all; else only the newest this many
+                                             // observations from fixed keyframes per point
+                                             // (<= kMaxObservationsPerPointCap): a tracker window
+                                             // pulls in every older keyframe seeing its points
+  double plane_reuse_mm = 0.2;  // a point's tangent plane from an earlier solve is reused while the
+                                // point (same map slot and stamp) stays within this distance of where
+                                // the plane was taken (curvature error <= d^2 / 2R: ~4 um at R = 5 mm);
+                                // 0: one closest-point query per point and solve
+  // A job's pose prior (BaJob::prior, the tracker's registration of frame
+  // 0) is tested, not simply applied: the job is solved with the prior's
+  // keyframe held (the registration as given), then again from there with
+  // it free under the prior. The free solution is kept only if it fits the
+  // data significantly better: F = ((C_held - C_free) / 6) / (C_free / dof)
+  // above this (C: final cost, dof: residuals - parameters). Under a right
+  // registration and Gaussian noise F follows F(6, dof): P(F > 6.3) ~ 1e-6
+  // for the thousands of residuals of a window. Why: freed, the first pose
+  // also drifts with the noise along the directions the organ's shape
+  // barely fixes (a smooth patch), which costs accuracy when the
+  // registration was right; a coarse registration stands out by far
+  // (tests: F ~ 300 at 1 deg / 4 mm, ~ 1.7 when exact). 0: always free.
+  double prior_release_f = 6.3;
+  // A job asking for it (BaJob::test_focal) is solved twice more from its
+  // solution, every keyframe free (the mesh fixing the gauge), with the
+  // focal lengths held and with one more parameter, a common scale s of
+  // them (principal point kept), and the solution restored after: the
+  // summary then tells how much better the data fits another focal length
+  // (BaSummary::focal_scale, focal_f; only with the shape residual on, which
+  // ties the structure to the metric mesh: without it a focal change is
+  // absorbed by depth). Costs two more solves.
+  int surface_distance_samples = 128;  // summary.mean_surface_distance_mm over at most this
+                                       // many evenly spaced points (0: all); one exact
+                                       // closest-point query each (~1.6 us)
+};
+
+inline constexpr int kMaxObservationsPerPointCap = 16;
+
+class BundleAdjuster {
+ public:
+  BundleAdjuster();
+  ~BundleAdjuster();
+  BundleAdjuster(const BundleAdjuster&) = delete;
+  BundleAdjuster& operator=(const BundleAdjuster&) = delete;
+
+  // Builds the closest-point index of the mesh and the cost-function pools
+  // for jobs of up to max_points / max_observations (allocates).
+  Status configure(const BundleAdjusterOptions& options, const Mesh& mesh, const Pinhole& K, int max_points,
+                   int max_observations);
+  // Solves the job in place with iteration and time limits (overriding the
+  // options' when > 0) and fills job->summary. False (summary.usable false)
+  // on an invalid job or a failed solve: the job's values are then not to
+  // be applied.
+  bool solve(BaJob* job, int max_iterations = 0, double max_time_s = 0);
+
+  // Drops the tangent planes kept from earlier solves (the bench: every
+  // solve pays its closest-point queries).
+  void forget_planes();
+
+  const ClosestPointIndex& surface() const { return surface_; }
+  const BundleAdjusterOptions& options() const { return options_; }
+  // Mean distance of the job's points to the mesh (mm) over at most
+  // max_samples evenly spaced points (0: all); -1 for no points.
+  double mean_surface_distance(const BaJob& job, int max_samples = 0) const;
+
+ private:
+  struct Impl;  // the Ceres objects (kept out of this header: glog macros)
+  bool valid(const BaJob& job) const;
+  struct SolveStats {
+    int residuals = 0, parameters = 0;  // Ceres' scalar residuals and effective parameters
+  };
+  bool solve_tested_prior(BaJob* job, int max_iterations, double max_time_s);
+  void test_focal(BaJob* job, int max_iterations, double max_time_s);
+  // The focal test's solves (test_focal): no keyframe held and no prior,
+  // the focal lengths held (kHeld) or scaled by one more parameter (kFree).
+  enum class FocalTest { kNone, kHeld, kFree };
+  bool solve_once(BaJob* job, bool free_prior, int max_iterations, double max_time_s,
+                  SolveStats* stats, FocalTest focal = FocalTest::kNone);
+  void save_solution(const BaJob& job);
+  void restore_solution(BaJob* job) const;
+  int build(BaJob* job, bool free_prior, FocalTest focal);
+  void newest_frames_per_point(const BaJob& job, int cap, bool fixed_only, std::vector<std::int32_t>* rows) const;
+  bool keep_observation(const BaJob& job, const BaObservation& o) const;
+  bool usable_observation(const BaJob& job, const BaObservation& o) const;
+  void select_points(BaJob* job);
+  void add_shape_residuals(BaJob* job);
+  double* pose_delta_block(int keyframe);  // Ceres' 6-dim pose block of a job keyframe
+  void apply_pose_deltas(BaJob* job);
+  void finish(BaJob* job, double initial_cost, double final_cost, double total_s, int iterations, bool usable);
+
+  BundleAdjusterOptions options_;
+  Pinhole K_;
+  ClosestPointIndex surface_;
+  std::unique_ptr<Impl> impl_;
+  std::vector<std::uint8_t> point_observed_;  // per job point: in the problem (a count while building)
+  std::vector<std::uint8_t> held_;            // per job keyframe: pose held constant (fixed or gauge), not a block
+  std::vector<std::int32_t> newest_frames_;   // per job point: max_observations_per_point newest frames, descending
+  std::vector<std::int32_t> newest_fixed_frames_;  // the same over fixed keyframes, max_fixed_observations_per_point
+  // The held solution while the freed one is tested (kPoseParams per keyframe, 3 per point).
+  std::vector<double> saved_poses_;
+  std::vector<double> saved_points_;
+  std::vector<ShapePlane> planes_;            // per job point: tangent plane at the start value
+  // Per map point slot (BaPoint::id < max_points): the plane, where it was
+  // taken and the point's stamp; sized in configure().
+  struct CachedPlane {
+    bool valid = false;
+    std::int32_t created_frame = -1;
+    Vec3 at = Vec3::Zero();
+    ShapePlane plane;
+  };
+  std::vector<CachedPlane> plane_cache_;
+  bool plane_for(const BaPoint& p, ShapePlane* plane, int* queries);
+  int max_points_ = 0, max_observations_ = 0;
+  bool configured_ = false;
+};
+
+}  // namespace st

@@ -1,0 +1,354 @@
+// Tracker facade, configuration checks and the per-frame dispatch.
+#include "core/tracking/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "core/base/capacity.h"
+#include "core/mesh/mesh_simplify.h"
+#include "core/tracking/tracker_impl.h"
+
+namespace st {
+
+namespace {
+
+Status check_config(const TrackerConfig& c, const CameraModel& camera) {
+  const auto err = [](const std::string& m) { return Status(make_error("tracker config: " + m)); };
+  if (c.width <= 0 || c.height <= 0 || c.width > kMaxImageWidth || c.height > kMaxImageHeight)
+    return err("frame size " + std::to_string(c.width) + "x" + std::to_string(c.height) +
+               " outside [1, " + std::to_string(kMaxImageWidth) + "]x[1, " +
+               std::to_string(kMaxImageHeight) + "]");
+  const Status cam = CameraModel::validate(camera.pinhole(), camera.distortion());
+  if (!cam.ok()) return err("camera: " + cam.message());
+  if (camera.pinhole().width != c.width || camera.pinhole().height != c.height)
+    return err("calibration size " + std::to_string(camera.pinhole().width) + "x" +
+               std::to_string(camera.pinhole().height) + " differs from the frame size");
+  if (c.n_features < 50 || c.n_features > kMaxKeypoints)
+    return err("n_features " + std::to_string(c.n_features) + " outside [50, " +
+               std::to_string(kMaxKeypoints) + "]");
+  if (c.max_keyframes < 2 || c.max_keyframes > kMaxKeyframes)
+    return err("max_keyframes " + std::to_string(c.max_keyframes) + " outside [2, " +
+               std::to_string(kMaxKeyframes) + "]");
+  if (c.max_map_points < c.n_features || c.max_map_points > kMaxMapPoints)
+    return err("max_map_points " + std::to_string(c.max_map_points) + " outside [n_features, " +
+               std::to_string(kMaxMapPoints) + "]");
+  if (c.raster_downscale != 1 && c.raster_downscale != 2 && c.raster_downscale != 4)
+    return err("raster_downscale must be 1, 2 or 4");
+  if (c.max_raster_triangles != 0 && (c.max_raster_triangles < 1000 || c.max_raster_triangles > kMaxMeshTriangles))
+    return err("max_raster_triangles " + std::to_string(c.max_raster_triangles) + " outside [1000, " +
+               std::to_string(kMaxMeshTriangles) + "] (0: never simplify)");
+  if (c.mask_margin_px < -256 || c.mask_margin_px > 256) return err("mask_margin_px outside [-256, 256]");
+  if (c.min_inliers < 6) return err("min_inliers must be >= 6 (a pose has 6 degrees of freedom)");
+  if (!(c.min_inlier_ratio >= 0 && c.min_inlier_ratio <= 1) || !(c.min_mask_agreement >= 0 && c.min_mask_agreement <= 1))
+    return err("min_inlier_ratio and min_mask_agreement must be in [0, 1]");
+  if (!(c.confirmed_min_inlier_ratio >= 0 && c.confirmed_min_inlier_ratio <= 1) ||
+      !(c.confirmed_keyframe_min_anchored >= 0 && c.confirmed_keyframe_min_anchored <= 1) ||
+      !(c.anchor_min_inlier_ratio >= 0 && c.anchor_min_inlier_ratio <= 1))
+    return err("confirmed_min_inlier_ratio, confirmed_keyframe_min_anchored and anchor_min_inlier_ratio must be in [0, 1]");
+  if (c.ba_lag_frames < 0 || c.ba_lag_frames > 1000) return err("ba_lag_frames outside [0, 1000]");
+  if (!(c.fast_reference_luma >= 0 && c.fast_reference_luma <= 255))
+    return err("fast_reference_luma must be in [0, 255] (0: off)");
+  if (!(c.fast_reference_contrast >= 0 && c.fast_reference_contrast <= 255))
+    return err("fast_reference_contrast must be in [0, 255] (0: off)");
+  if (!(c.confirm_agreement_px >= 0 && c.confirm_agreement_px <= 1000))
+    return err("confirm_agreement_px must be in [0, 1000]");
+  if (!(c.max_rms_px > 0) || !(c.max_jump_deg > 0) || !(c.max_jump_mm > 0))
+    return err("max_rms_px, max_jump_deg and max_jump_mm must be positive");
+  if (!(c.search_radius_px > 0.f) || !(c.wide_radius_px >= c.search_radius_px) || !(c.refine_radius_px > 0.f))
+    return err("search radii must be positive and wide_radius_px >= search_radius_px");
+  if (c.max_hamming < 1 || c.max_hamming > 256) return err("max_hamming outside [1, 256]");
+  if (!(c.w_shape >= 0) || !std::isfinite(c.w_shape) || c.ba_window_keyframes < 2 ||
+      c.ba_window_keyframes > kMaxKeyframes || c.ba_max_iterations < 1 || c.ba_global_max_iterations < 1 ||
+      !(c.ba_max_time_s > 0) || !(c.ba_global_max_time_s > 0) || c.ba_max_observations < 1)
+    return err("bundle adjustment settings out of range (w_shape >= 0, window in [2, kMaxKeyframes], limits > 0)");
+  if (!(c.registration_sigma_deg >= 0) || !std::isfinite(c.registration_sigma_deg) ||
+      !(c.registration_sigma_mm >= 0) || !std::isfinite(c.registration_sigma_mm) ||
+      (c.registration_sigma_deg > 0) != (c.registration_sigma_mm > 0) ||
+      c.ba_registration_keyframes < 0 || !(c.registration_release_f >= 0) ||
+      !std::isfinite(c.registration_release_f))
+    return err(
+        "registration prior out of range (both sigmas 0, or both finite and > 0; keyframes >= 0; "
+        "release F >= 0)");
+  if (c.local_map_per_cell < 0 || c.local_map_per_cell > 8) return err("local_map_per_cell outside [0, 8]");
+  if (!(c.keyframe_max_motion_px > 0.f)) return err("keyframe_max_motion_px must be positive");
+  if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
+      c.min_spread_cells < 0 || c.min_spread_cells > 16 || !(c.dead_reckoning_decay > 0.0) ||
+      !(c.dead_reckoning_decay <= 1.0))
+    return err("relocalisation settings out of range");
+  if (c.calibration_test_jobs < 0 || !(c.calibration_min_f > 0) || !std::isfinite(c.calibration_min_f) ||
+      !(c.calibration_scale_error > 0) || !(c.calibration_scale_error < 1) || c.calibration_votes < 1)
+    return err("calibration test settings out of range");
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
+                              const SE3& T_camera_model_init) {
+  if (Status s = check_config(config, camera); !s.ok()) return s;
+  if (mesh.triangle_count() <= 0) return make_error("tracker: the mesh has no triangles");
+  if (!T_camera_model_init.all_finite()) return make_error("tracker: T_camera_model_init is not finite");
+  config_ = config;
+  camera_ = camera;
+  K_ = camera.pinhole();
+  distorted_ = !camera.distortion().is_zero();
+  T_init_ = T_camera_model_init;
+  RasterConfig rc;
+  rc.width = config.width;
+  rc.height = config.height;
+  rc.downscale = config.raster_downscale;
+  // The per-frame render draws the mesh, or its simplified copy when it is
+  // over budget (TrackerConfig::max_raster_triangles).
+  Mesh simplified;
+  const Mesh* rendered = &mesh;
+  if (config.max_raster_triangles > 0 && mesh.triangle_count() > config.max_raster_triangles) {
+    auto s = simplify_to_budget(mesh, config.max_raster_triangles);
+    if (!s) return make_error("tracker: " + s.message());
+    simplified = std::move(s).value();
+    rendered = &simplified;
+  }
+  if (Status s = raster_.configure(*rendered, rc); !s.ok()) return make_error("tracker: raster: " + s.message());
+  if (Status s = valid_mask_.configure(ValidMaskConfig{}, config.width, config.height); !s.ok())
+    return make_error("tracker: valid mask: " + s.message());
+  // The occluder mask is at the chroma's resolution, the valid mask's (1/2).
+  if (Status s = occluder_.configure(OccluderMaskConfig{}, config.width, config.height); !s.ok())
+    return make_error("tracker: occluder mask: " + s.message());
+  {
+    const GrayView vm = valid_mask_.mask();
+    valid_without_occluders_.assign(static_cast<std::size_t>(vm.width) * static_cast<std::size_t>(vm.height), 0);
+  }
+  OrbConfig oc;
+  oc.n_features = config.n_features;
+  oc.levels = config.levels;
+  oc.scale_factor = config.scale_factor;
+  oc.organ_margin_px = config.mask_margin_px;
+  oc.organ_patch_inside = config.mask_patch_inside;
+  if (Status s = orb_.configure(oc, config.width, config.height); !s.ok()) return make_error("tracker: ORB: " + s.message());
+  MatchConfig mc;
+  mc.max_distance = config.max_hamming;
+  if (Status s = matcher_.configure(mc); !s.ok()) return make_error("tracker: matcher: " + s.message());
+  if (Status s = grid_.configure(config.width, config.height); !s.ok()) return make_error("tracker: grid: " + s.message());
+  if (Status s = motion_.configure(config.width, config.height); !s.ok()) return make_error("tracker: " + s.message());
+  {
+    const ImagePyramid& pyr = orb_.pyramid();
+    std::array<int, kMaxPyramidLevels> widths{};
+    for (int k = 0; k < pyr.levels(); ++k) widths[static_cast<std::size_t>(k)] = pyr.level(k).width;
+    align_level_ = DirectAligner::choose_level(widths.data(), pyr.levels());
+    const GrayView l = pyr.level(align_level_);
+    if (Status s = aligner_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
+      return make_error("tracker: " + s.message());
+    if (Status s = anchor_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
+      return make_error("tracker: " + s.message());
+  }
+  if (Status s = solver_.configure(kMaxKeypoints); !s.ok()) return make_error("tracker: pose: " + s.message());
+  PnpRansacOptions ro;
+  ro.min_inliers = config.min_inliers;
+  ro.max_iterations = 300;
+  if (Status s = ransac_.configure(kMaxKeypoints, ro); !s.ok()) return make_error("tracker: RANSAC: " + s.message());
+  if (Status s = map_.configure(config.max_map_points, config.max_keyframes, kMaxKeypoints); !s.ok())
+    return make_error("tracker: " + s.message());
+  features_ = std::make_unique<FeatureSet>();
+  train_ = std::make_unique<FeatureSet>();
+  const auto nk = static_cast<std::size_t>(kMaxKeypoints);
+  const auto np = static_cast<std::size_t>(config.max_map_points);
+  kp_ideal_.assign(nk, Vec2::Zero());
+  kp_inlier_.assign(nk, 0);
+  match_of_query_.assign(nk, -1);
+  train_point_.assign(nk, -1);
+  corr_p_.assign(nk, Vec3::Zero());
+  corr_px_.assign(nk, Vec2::Zero());
+  corr_info_.assign(nk, 1.0);
+  corr_point_.assign(nk, -1);
+  corr_kp_.assign(nk, -1);
+  corr_inlier_.assign(nk, 0);
+  local_ids_.assign(np, -1);
+  projected_.assign(np, ProjectedPoint{});
+  match_of_point_.assign(np, -1);
+  dist_of_point_.assign(np, 0);
+  searched_x_.assign(np, 0.f);
+  searched_y_.assign(np, 0.f);
+  search_active_.assign(np, 1);
+  ba_point_index_.assign(np, -1);
+  ba_keyframe_index_.assign(static_cast<std::size_t>(config.max_keyframes), -1);
+  ba_order_.assign(static_cast<std::size_t>(config.max_keyframes), -1);
+  octave_info_.assign(static_cast<std::size_t>(kMaxPyramidLevels), 1.0);
+  octave_scale_.assign(static_cast<std::size_t>(kMaxPyramidLevels), 1.f);
+  for (int o = 0; o < kMaxPyramidLevels; ++o) {
+    octave_info_[static_cast<std::size_t>(o)] = octave_information(o, static_cast<double>(config.scale_factor));
+    octave_scale_[static_cast<std::size_t>(o)] = std::pow(config.scale_factor, static_cast<float>(o));
+  }
+  started_ = false;
+  return Status::Ok();
+}
+
+void TrackerImpl::start() {
+  map_.clear();
+  started_ = true;
+  initialised_ = false;
+  lost_ = false;
+  raster_valid_ = false;
+  T_last_ = T_init_;
+  velocity_ = SE3();
+  lost_frames_ = strict_frames_left_ = 0;
+  lost_motion_px_ = kUnknownMotion;
+  last_inliers_ = 0;
+  last_depth_mm_ = 100.0;
+  motion_.reset();
+  aligner_.forget_reference();
+  anchor_.forget_reference();
+  ref_keyframe_ = -1;
+  reloc_cursor_ = 0;
+  ba_window_pending_ = ba_global_pending_ = false;
+  init_keyframe_ = init_keyframe_frame_ = -1;
+  keyframes_since_global_ = 0;
+  calibration_jobs_ = 0;
+  calibration_ = CalibrationCheck{};
+  ba_min_version_ = ba_version_ + 1;  // a job still out refers to the map just cleared
+}
+
+TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma) {
+  TrackResult r;
+  const double t0 = now_ms();
+  if (!started_ || luma.empty() || luma.width != config_.width || luma.height != config_.height) {
+    r.map_points = map_.point_count();
+    r.keyframes = map_.keyframe_count();
+    return r;  // defined degraded state: lost, no pose
+  }
+  const bool ba_applied = apply_ba();  // safe point: nothing of this frame uses the map yet
+  if (calibration_.suspect && calibration_.suspect_frame < 0) calibration_.suspect_frame = frame_index;
+  valid_view_ = valid_scene_ = valid_mask_.build(luma);
+  const double t_valid = now_ms();
+  bool occluder_refused = false;
+  const int occluder_pixels = remove_occluders_from_valid(luma, chroma, &occluder_refused);
+  const double t_occluder = now_ms();
+  if (!initialised_) {
+    r = initialise(luma, frame_index);
+  } else if (lost_) {
+    r = relocalise(luma, frame_index);
+  } else {
+    r = track(luma, frame_index);
+  }
+  r.times_ms[static_cast<int>(Stage::kPyramid)] += t_valid - t0;  // valid mask (and BA apply)
+  if (occluder_pixels >= 0) r.times_ms[static_cast<int>(Stage::kOccluder)] = t_occluder - t_valid;
+  r.occluder_pixels = occluder_pixels;
+  r.occluder_refused = occluder_refused;
+  if (r.keyframe) {
+    ba_window_pending_ = true;
+    if (config_.ba_registration_keyframes > 0 && registration_free() &&
+        ++keyframes_since_global_ >= config_.ba_registration_keyframes) {
+      ba_global_pending_ = true;
+      keyframes_since_global_ = 0;
+    }
+  }
+  if (r.state == TrackState::kRelocalised && config_.ba_global_after_reloc) ba_global_pending_ = true;
+  if (r.state == TrackState::kInitialised) ba_window_pending_ = ba_global_pending_ = false;  // a fresh map
+  r.ba_applied = ba_applied;
+  r.ba_submitted = submit_ba();
+  r.map_points = map_.point_count();
+  r.keyframes = map_.keyframe_count();
+  r.calibration_suspect = calibration_.suspect;
+  r.calibration_focal_scale = static_cast<float>(calibration_.focal_scale);
+  if (config_.now_ns) r.times_ms[static_cast<int>(Stage::kTotal)] = now_ms() - t0;
+  return r;
+}
+
+// The occluder mask of this frame taken out of valid_view_ (which then
+// views valid_without_occluders_). Returns the valid pixels removed, -1
+// when there is no occluder mask (off, no chroma, or chroma of another size).
+int TrackerImpl::remove_occluders_from_valid(GrayView luma, ChromaView chroma, bool* refused) {
+  if (!config_.use_occluder_mask || chroma.empty() || valid_view_.empty()) return -1;
+  const GrayView occluder = occluder_.build(luma, chroma.u, chroma.v);
+  if (occluder.empty()) return -1;
+  if (occluder_.candidate_pixels() == 0) return 0;  // then the mask is empty
+  // A mask over most of the organ is the organ's own colour (a pale organ,
+  // a grey texture, a monochrome render), not an instrument in front of it:
+  // taking it out would leave nothing to track. Judged on the last render;
+  // before the first one (frame 0) the mask is not used.
+  if (!raster_valid_) return 0;
+  const GrayView organ = raster_.mask();
+  if (organ.width != occluder.width || organ.height != occluder.height) return 0;
+  long organ_px = 0, flagged_on_organ = 0;
+  for (int y = 0; y < organ.height; ++y) {
+    const std::uint8_t* o = occluder.row(y);
+    const std::uint8_t* g = organ.row(y);
+    for (int x = 0; x < organ.width; ++x) {
+      organ_px += g[x] != 0;
+      flagged_on_organ += (g[x] != 0) & (o[x] != 0);
+    }
+  }
+  if (organ_px == 0 || flagged_on_organ > kMaxOccludedOrganShare * static_cast<double>(organ_px)) {
+    *refused = true;
+    return 0;
+  }
+  ImageView<std::uint8_t> out(valid_without_occluders_.data(), valid_view_.width, valid_view_.height,
+                              valid_view_.width);
+  const int removed = remove_occluders(valid_view_, occluder, out);
+  valid_view_ = out;
+  return removed;
+}
+
+double TrackerImpl::now_ms() const {
+  return config_.now_ns ? static_cast<double>(config_.now_ns()) * 1e-6 : 0.0;
+}
+
+void TrackerImpl::lap(Stage s, double* t_last_ms, TrackResult* r) const {
+  if (!config_.now_ns) return;
+  const double t = now_ms();
+  r->times_ms[static_cast<int>(s)] += t - *t_last_ms;
+  *t_last_ms = t;
+}
+
+void TrackerImpl::render_at(const SE3& T_camera_model) {
+  raster_.render(T_camera_model, K_);
+  raster_pose_ = T_camera_model;
+  raster_valid_ = true;
+}
+
+// ---- facade ----
+
+Tracker::Tracker() = default;
+Tracker::~Tracker() { delete impl_; }
+
+Status Tracker::configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
+                          const SE3& T_camera_model_init) {
+  delete impl_;
+  impl_ = new TrackerImpl();
+  Status s = impl_->configure(config, mesh, camera, T_camera_model_init);
+  if (!s.ok()) {
+    delete impl_;
+    impl_ = nullptr;
+  }
+  return s;
+}
+
+void Tracker::set_ba_channel(BaChannel* channel) {
+  if (impl_) impl_->set_ba_channel(channel);
+}
+
+void Tracker::start() {
+  if (impl_) impl_->start();
+}
+
+TrackResult Tracker::step(GrayView luma, int frame_index, ChromaView chroma) {
+  if (!impl_) return TrackResult{};
+  return impl_->step(luma, frame_index, chroma);
+}
+
+void Tracker::stop() {
+  if (impl_) impl_->stop();
+}
+
+int Tracker::raster_triangles() const { return impl_ ? impl_->raster_triangles() : 0; }
+CalibrationCheck Tracker::calibration_check() const { return impl_ ? impl_->calibration_check() : CalibrationCheck{}; }
+
+int Tracker::map_points(Vec3* p_model, int capacity) const {
+  if (!impl_) return 0;
+  const TrackingMap& m = impl_->map();
+  int n = 0;
+  for (int id = 0; id < m.point_high_water() && n < capacity; ++id)
+    if (m.point(id).alive) p_model[n++] = m.point(id).p_model;
+  return n;
+}
+
+}  // namespace st

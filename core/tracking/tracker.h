@@ -1,0 +1,296 @@
+// Tracker: for every frame, the scope pose in the organ's (model) frame, or
+// an honest `lost`. The paper's system on the rasteriser and the ORB
+// frontend: prior-shape initialisation from the mesh depth at frame 0,
+// pseudo-segmentation (features only inside the mesh projected at the
+// predicted pose), a bounded map with points from the mesh depth at each
+// keyframe, robust LM pose, relocalisation by P3P RANSAC when lost.
+//
+// Lifecycle: configure() (allocates every pool, once) -> start() -> step()
+// per frame (allocates nothing, throws nothing, logs nothing) -> stop().
+// Thread: the tracking thread. core/ has no clock: the caller injects one
+// (TrackerConfig::now_ns) for the per-stage timings.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "core/geometry/camera.h"
+#include "core/image/image.h"
+#include "core/mesh/mesh.h"
+#include "core/base/result.h"
+#include "core/geometry/se3.h"
+
+namespace st {
+
+enum class TrackState : std::uint8_t {
+  kInitialised,  // frame 0 (or a restart): pose from T_camera_model_init, map built from the mesh
+  kTracking,     // pose reported, passed every quality check
+  kRelocalised,  // pose recovered by relocalisation this frame (stricter checks passed)
+  kLost,         // no pose reported: the tracker is not sure
+};
+const char* to_string(TrackState s);
+
+// Stage timings of one step, milliseconds (0 where the stage did not run).
+enum class Stage : int { kPyramid, kOccluder, kRaster, kDetect, kDescribe, kMatch, kPose, kMap, kReloc, kTotal, kCount };
+const char* to_string(Stage s);
+using StageTimes = std::array<double, static_cast<int>(Stage::kCount)>;
+
+struct TrackerConfig {
+  int width = 0, height = 0;       // frame size = calibration size
+  // Features (see core/features/orb_extractor.h for their meaning).
+  int n_features = 1500;
+  int levels = 8;
+  float scale_factor = 1.2f;
+  // Pseudo-segmentation.
+  bool use_mask = true;            // false: --no-mask ablation (whole valid image)
+  int raster_downscale = 2;        // mask/depth raster at 1/2 resolution
+  // The per-frame render (mask, depth for new map points, dead reckoning's
+  // reference depth) uses the mesh simplified to at most this many
+  // triangles (core/mesh/mesh_simplify.h): a segmentation exported as it is can
+  // hold hundreds of thousands, and the render's cost grows with them. The
+  // shape residual in BA and the texturing keep the mesh as given. 0: never
+  // simplify.
+  int max_raster_triangles = 40000;
+  // Organ mask margin, full-resolution pixels: > 0 dilates, < 0 erodes.
+  // A little inside: the prior and the predicted pose are never exact.
+  int mask_margin_px = -4;
+  // Keep only keypoints whose descriptor patch (radius 16 px, times 1.2 per
+  // octave) lies on the organ (OrbConfig::organ_patch_inside). The organ's
+  // outline is an occluding contour: it slides over the surface as the
+  // view changes, and a patch that reaches across it describes the contour,
+  // not the tissue, so its map point pulls the pose towards where the
+  // contour was. On smooth tissue such keypoints are a large share and the
+  // map drifts until tracking is lost (README, "the organ's outline").
+  bool mask_patch_inside = true;
+  // Dim video: FAST thresholds are intensity differences, and every
+  // difference shrinks with the light (gamma-encoded luma above black scales
+  // with it). A frame whose median luma over the organ (the valid image
+  // when there is no organ mask) is below this has its FAST thresholds
+  // scaled by (median - 16) / (fast_reference_luma - 16), down to
+  // OrbExtractor's floors (5 strict, 2 relaxed): the features of a dim
+  // frame are those of the same scene lit brighter. At or above it, the
+  // configured thresholds (ORB-SLAM's 20 / 7). 0 (or anything up to 16): off.
+  double fast_reference_luma = 80.0;
+  // A veiled view (surgical smoke, a fogged lens): the frame is bright but
+  // its texture is flat, and every intensity difference FAST tests shrinks
+  // with the veil. A frame whose organ texture contrast (TrackerImpl::
+  // organ_contrast: the median difference of neighbouring 4x4 block means,
+  // luma units) is below this has its FAST thresholds scaled by contrast /
+  // fast_reference_contrast, as a dim frame is (the smaller scale wins).
+  // Measured: the real liver frame 6.6 (at 1280x720), the simulator's
+  // procedural tissue 7-9, its real-photo tissue 3.4-4.4 (smoother than the
+  // real frame: the photo is magnified onto the organ), under its smoke
+  // 1.9-3.4. 0: off.
+  double fast_reference_contrast = 5.0;
+  // Occluders: when step() is given chroma, near-neutral pixels (surgical
+  // instruments: steel, black/grey plastic; core/image/occluder_mask.h) leave the
+  // valid mask, with a margin: no keypoint there, hence no map point on an
+  // instrument that lies in front of the organ (inside its mask) and moves
+  // against it; direct alignment and the image-motion prior skip them too.
+  // false: --no-occluder-mask ablation. Without chroma there is no mask.
+  bool use_occluder_mask = true;
+  // Map points take the descriptor (and angle, octave, distance, viewing
+  // direction) of their latest keyframe inlier observation, not only of the
+  // keyframe that made them (TrackerImpl::add_keyframe). false: the
+  // creating observation's for good (--no-descriptor-refresh ablation).
+  bool refresh_descriptors = true;
+  // Bounded map.
+  int max_keyframes = 48;          // <= kMaxKeyframes
+  int max_map_points = 12000;      // <= kMaxMapPoints
+  // Honest state: below any of these the frame is lost.
+  int min_inliers = 30;
+  double min_inlier_ratio = 0.35;  // inliers / matched correspondences
+  double max_rms_px = 2.5;         // inlier reprojection RMS, ideal pixels, each residual scaled
+                                   // by its octave's sigma (1.2^octave): level-0 pixels
+  double min_mask_agreement = 0.9; // share of inliers inside the organ rendered at the final pose
+  // Confirmed poses: on smooth, noisy tissue most ORB matches are wrong
+  // (simulated invivo with half the organ detail: 30 % of a pose's matches
+  // are inliers while its markers are 1 px from the truth), so a right pose
+  // fails min_inlier_ratio. A pose that passes every gate but that one,
+  // down to confirmed_min_inlier_ratio, is reported if direct alignment of
+  // the frame against the last frame that passed the normal gates with an
+  // inlier ratio of at least anchor_min_inlier_ratio (the anchor) puts the
+  // organ within confirm_agreement_px of it (mean over the organ, level-0
+  // px): two independent measurements agree. Such a frame never becomes
+  // the anchor, and it adds a keyframe only if at least
+  // confirmed_keyframe_min_anchored of its inliers are anchored points
+  // (made by keyframes of normal-gate frames): a slow drift cannot extend
+  // the map on its own. Needs use_image_motion; confirmed_min_inlier_ratio
+  // >= min_inlier_ratio turns it off.
+  double confirmed_min_inlier_ratio = 0.2;
+  double confirm_agreement_px = 3.0;
+  double anchor_min_inlier_ratio = 0.4;
+  double confirmed_keyframe_min_anchored = 0.5;
+  // Search by projection (full-resolution pixels, scaled by the predicted octave's scale).
+  float search_radius_px = 15.f;   // around the constant-velocity prediction
+  float wide_radius_px = 45.f;     // second pass when the first gives too few matches
+  float refine_radius_px = 5.f;    // local-map search again at the first solved pose
+  int local_map_per_cell = 0;      // local-map cap per cell of a 48x27 image grid, most recently found first (0: no cap, <= 8; capped runs lose fast-s2, so off)
+  int max_hamming = 100;           // descriptor distance limit of a match (of 256 bits)
+  // Implausible motion: a pose this far from the prediction is lost (generous on purpose).
+  double max_jump_deg = 25.0;
+  double max_jump_mm = 40.0;       // camera centre displacement
+  // Keyframes: inserted when the tracked points fell below this share of the
+  // reference keyframe's, or the view turned / travelled beyond these.
+  double keyframe_tracked_ratio = 0.7;
+  double keyframe_angle_deg = 10.0;
+  double keyframe_distance_ratio = 0.1;  // camera travel / median inlier depth
+  float keyframe_max_motion_px = 40.f;    // no keyframe from a frame whose view moved more than this
+                                          // since the last one (level-0 px at the tracked depth): blurred
+  // Relocalisation and the stricter gates after it.
+  int reloc_keyframes_per_frame = 2;    // brute-force budget per lost frame
+  int strict_frames = 5;                // frames after relocalisation under strict gates
+  int dead_reckoning_frames = 10;       // lost: predict with the last velocity for this many frames
+  double dead_reckoning_decay = 0.7;    // lost: the carried velocity's twist shrinks by this per frame
+                                        // (a fast turn that broke tracking ends; 1: constant velocity)
+  bool use_image_motion = true;         // rotation prior from the whole-image shift (core/motion/image_motion.h)
+  double strict_inlier_factor = 1.5;    // min_inliers multiplier when strict
+  int min_spread_cells = 3;             // strict: inliers must occupy this many cells of a 4x4 grid
+  // Bundle adjustment (core/mapping/bundle_adjustment.h), run by the mapping side
+  // given to Tracker::set_ba_channel(); without one there is no BA.
+  bool use_ba = true;                   // false: --no-ba ablation (no jobs handed out)
+  double w_shape = 100.0;               // shape residual weight (paper: 100); 0: --no-shape-ba
+  int ba_window_keyframes = 8;          // newest keyframes optimised by a window BA (<= max_keyframes used)
+  int ba_max_iterations = 10;           // window BA
+  double ba_max_time_s = 0.03;
+  bool ba_global_after_reloc = true;    // a global BA over all keyframes after a relocalisation
+  // Refining the first frame's registration. T_camera_model_init is a coarse
+  // registration (sequence-format.md). While frame 0's keyframe lives, every
+  // BA job holding it free puts this prior on it (1 sigma per axis, rotation
+  // and translation of the camera frame), and BA tests it: the job is
+  // solved with frame 0 held, then with it free under the prior (no
+  // keyframe held: the mesh and the prior fix the frame, and the whole
+  // map, first pose included, moves to agree with the mesh and the
+  // observations); the freed solution is kept only if its cost is lower by
+  // F > registration_release_f (BundleAdjusterOptions::prior_release_f). A
+  // global BA every ba_registration_keyframes keyframes lets the older
+  // keyframes follow. Sigmas 0 (the default): the registration is taken as
+  // exact. Off by default because the test cannot tell a misplaced prior
+  // from a mis-shaped one: on a kidney whose prior is 1 mm off in shape,
+  // seen from close up, it moved a right registration by 2 deg / 6 mm and
+  // TRE went from 3.1 to 8.1 px (README, "Refining a coarse registration").
+  double registration_sigma_deg = 0.0;
+  double registration_sigma_mm = 0.0;
+  double registration_release_f = 6.3;
+  int ba_registration_keyframes = 4;  // 0: no periodic global BA
+  int ba_global_max_iterations = 15;
+  double ba_global_max_time_s = 0.2;
+  int ba_max_observations = 40000;      // observations per job (the job buffer's capacity)
+  // 0 (live): a solved job is applied at the first frame that finds it
+  // solved, so where corrections land depends on the machine's speed. N > 0
+  // (deterministic replays and tests): a job is applied exactly N frames
+  // after it was handed over, the tracking thread waiting for the solve if
+  // it must, and solves stop by iteration count, not time. Read by the
+  // mapping side (firmware_app/mapping_worker.h).
+  int ba_lag_frames = 0;
+  // The calibration's focal length, tested by the first window BA jobs
+  // (BaJob::test_focal; needs BA and the shape residual). A scope
+  // calibrated at another zoom, or another scope's calibration, moves every
+  // pose by degrees and mm while tracking stays self-consistent: on the
+  // simulated orbit with fx, fy 15 % too long, 0 % lost and 9 % of the
+  // frames more than 50 px off. A tested job whose data fits focal lengths
+  // scaled by s with F > calibration_min_f and |s - 1| >
+  // calibration_scale_error is a vote; calibration_votes votes in a row (s
+  // on the same side of 1) and the calibration is judged suspect
+  // (CalibrationCheck; the app warns, summary.json says so). Tracking goes
+  // on: the mesh is not the organ, and a prior off in shape pulls s as a
+  // focal error does (the simulated kidney seen from close up with a
+  // prior 3 mm off in places: s 0.90-0.92 at F up to 210 with the right
+  // calibration), so the test cannot tell which of the two is wrong, only
+  // that the video and the prior disagree in a way that costs degrees.
+  // Both tests must hold: F alone flags small biases, |s - 1| alone the
+  // scatter of a weak window (s = 1.13 at F = 8). README, "A wrong
+  // calibration".
+  bool check_calibration = true;
+  int calibration_test_jobs = 6;  // window jobs tested (the first ones; each costs two more solves)
+  double calibration_min_f = 100.0;
+  double calibration_scale_error = 0.05;
+  int calibration_votes = 2;
+  // Clock for stage timings (monotonic ns); nullptr: no timings.
+  std::int64_t (*now_ns)() = nullptr;
+};
+
+struct TrackResult {
+  TrackState state = TrackState::kLost;
+  bool pose_valid = false;        // true for kInitialised, kTracking, kRelocalised
+  SE3 T_camera_model;             // valid only when pose_valid
+  int features = 0;               // keypoints extracted this frame
+  int matches = 0;                // correspondences given to the pose solver
+  int inliers = 0;
+  double inlier_ratio = 0;
+  double rms_px = 0;              // unweighted inlier RMS, ideal pixels
+  double whitened_rms_px = 0;     // octave-normalised inlier RMS (what max_rms_px gates)
+  double mask_agreement = 0;
+  bool confirmed_by_alignment = false;  // reported under the relaxed ratio, confirmed by direct alignment
+  bool keyframe = false;          // a keyframe was inserted this frame
+  int map_points = 0, keyframes = 0;
+  StageTimes times_ms{};
+  double pose_jump_deg = 0, pose_jump_mm = 0;  // final pose vs the prediction (tracking)
+  int local_map = 0;              // map points projected into the predicted view
+  bool ba_applied = false;        // a solved BA job was applied to the map at the start of this frame
+  bool ba_submitted = false;      // a BA job was handed to the mapping side this frame
+  int occluder_pixels = -1;       // valid-mask pixels (1/2 resolution) removed as occluders; -1: no
+                                  // occluder mask this frame (no chroma, or use_occluder_mask off)
+  bool occluder_refused = false;  // the mask covered most of the organ (its own colour): not used
+  float fast_threshold_scale = 1.f;  // FAST thresholds scaled for a dim or veiled frame (fast_reference_luma,
+                                     // fast_reference_contrast)
+  bool low_contrast = false;         // the contrast, not the luma, set fast_threshold_scale
+  bool calibration_suspect = false;  // the calibration was judged suspect (at this frame or before)
+  float calibration_focal_scale = 1.f;  // ... the focal scale the video fits (CalibrationCheck)
+};
+
+// What the focal-length test of the calibration found so far
+// (TrackerConfig::check_calibration).
+struct CalibrationCheck {
+  int tests = 0;           // window jobs whose focal test came back
+  int votes = 0;           // consecutive votes against the calibration
+  bool suspect = false;    // judged suspect at suspect_frame
+  int suspect_frame = -1;
+  double focal_scale = 1;  // the best-fitting focal scale of the last test, or of the deciding one
+  double focal_f = 0;      // ... and its F statistic
+  double max_f = 0;        // the largest F of all tests
+  double last_scale = 1;   // the last test's scale (the side of 1 its vote was on)
+};
+
+class TrackerImpl;
+class BaChannel;
+
+class Tracker {
+ public:
+  Tracker();
+  ~Tracker();
+  Tracker(const Tracker&) = delete;
+  Tracker& operator=(const Tracker&) = delete;
+
+  // Validates the config against capacity.h and the camera, copies the mesh,
+  // sizes every pool and buffer. T_camera_model_init registers the mesh to
+  // the first frame given to step().
+  Status configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
+                   const SE3& T_camera_model_init);
+  // Optional mapping side for bundle adjustment (core/mapping/ba_channel.h); call
+  // after configure(), before start(); nullptr detaches. Not owned.
+  void set_ba_channel(BaChannel* channel);
+  void start();
+  // One frame: luma (Y plane, distorted image as captured, width x height)
+  // and, optionally, its 4:2:0 chroma for the occluder mask
+  // (TrackerConfig::use_occluder_mask); empty chroma, or planes of another
+  // size: no occluder mask. Allocates nothing.
+  TrackResult step(GrayView luma, int frame_index, ChromaView chroma = {});
+  void stop();
+
+  // Diagnostics (tests, overlay; not for the hot path): copies the model
+  // points of up to capacity alive map points to p_model; returns how many
+  // were written. 0 before configure().
+  int map_points(Vec3* p_model, int capacity) const;
+  // Triangles of the mesh the tracker renders every frame (the given mesh's
+  // count unless it was simplified; TrackerConfig::max_raster_triangles).
+  // 0 before configure().
+  int raster_triangles() const;
+  // The calibration test so far (default values before configure()).
+  CalibrationCheck calibration_check() const;
+
+ private:
+  TrackerImpl* impl_ = nullptr;  // allocated in configure()
+};
+
+}  // namespace st

@@ -1,0 +1,175 @@
+// Relocalisation when lost: features over the whole valid image; first a
+// cheap attempt by projection from the dead-reckoned pose (measured by
+// direct alignment while the organ is in view, else carried forward, then
+// the last good pose) with the wide radius, then brute-force matching
+// against a bounded number of keyframes per frame (the keyframes nearest
+// the last good pose first, then cycling through all), P3P RANSAC, LM, and
+// the same projection tracking at the found pose. Every candidate must pass
+// the strict gates (more inliers, spread, mask agreement), except a pose
+// the measured dead reckoning predicted within the tracking search radius:
+// it passes the normal gates, as a tracked frame would; and a pose that
+// fails only the inlier ratio, down to confirmed_min_inlier_ratio, if
+// direct alignment against the anchor confirms it (TrackerConfig,
+// confirmed poses). Tracking thread; allocates nothing.
+#include <algorithm>
+#include <cmath>
+
+#include "core/tracking/tracker_impl.h"
+
+namespace st {
+
+TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
+  TrackResult r;
+  double t = now_ms();
+  ++lost_frames_;
+  // Dead reckoning: for the first frames the camera most likely keeps the
+  // motion it had when tracking failed (a fast turn); later the last pose is
+  // the better guess.
+  // The image motion keeps turning the guess (and stays continuous for the
+  // frames after relocalisation).
+  const SE3 T_turned = motion_prior(luma, T_dead_reckoned_, lost_velocity_ * T_dead_reckoned_);
+  lap(Stage::kPyramid, &t, &r);  // image preparation: the small blurred image and its alignment
+  extract(luma, false, &r);  // whole valid image: the organ may be anywhere
+  lap(Stage::kDetect, &t, &r);
+  // Where the organ is in view, the motion is measured (dead_reckon: this
+  // frame against the last one, with the mesh's depth) and that
+  // measurement is the guess, however long tracking has been lost; the
+  // velocity follows it.
+  SE3 T_measured = T_turned;
+  const bool measured = dead_reckon(&T_measured, lost_velocity_ * T_dead_reckoned_);
+  // This frame's own motion (its blur), when measured.
+  lost_motion_px_ = measured ? image_shift_px(T_dead_reckoned_, T_measured) : kUnknownMotion;
+  if (measured) {
+    lost_velocity_ = T_measured * T_dead_reckoned_.inverse();
+    T_dead_reckoned_ = T_measured;
+  } else {
+    // The turn that broke tracking slows down (a scope swung fast is
+    // stopped again): carried at full speed, the guess overshot by 40 deg
+    // within 10 frames of a simulated burst. The image motion still
+    // corrects rotation.
+    lost_velocity_ = SE3::exp(config_.dead_reckoning_decay * lost_velocity_.log());
+    if (lost_frames_ <= config_.dead_reckoning_frames) T_dead_reckoned_ = T_turned;
+  }
+  const SE3 T_guess = measured || lost_frames_ <= config_.dead_reckoning_frames ? T_dead_reckoned_ : T_last_;
+  lap(Stage::kPyramid, &t, &r);  // image preparation, dead reckoning
+  render_at(T_guess);
+  lap(Stage::kRaster, &t, &r);
+  const QualityGates strict = gates(true);
+  PoseEstimate e;
+  const bool solved = track_from(T_guess, config_.wide_radius_px, &e, &r);
+  // Features that land where dead reckoning predicted, within the radius
+  // normal tracking searches around its constant-velocity prediction,
+  // confirm the measured motion: two independent measurements agree, and
+  // the frame is judged like a tracked one (normal gates, no strict frames
+  // after it). Otherwise the strict gates of relocalisation apply.
+  const double agreement_px = solved && measured ? view_difference_px(T_guess, e.T_camera_model) : kUnknownMotion;
+  const bool confirmed = agreement_px <= static_cast<double>(config_.search_radius_px);
+  bool found = solved && passes(e, confirmed ? gates(false) : strict);
+  // A pose only the relaxed gates pass, if direct alignment against the
+  // anchor confirms it (see anchor_agreement_px): measured from a trusted
+  // frame, so no strict frames after it either.
+  if (!found && solved && passes(e, confirm_gates()))
+    found = r.confirmed_by_alignment =
+        anchor_agreement_px(T_guess, e.T_camera_model) <= config_.confirm_agreement_px;
+  const bool found_confirmed = found && (confirmed || r.confirmed_by_alignment);
+  // A keyframe's points stay in the map. Such a frame may seed them only
+  // if it passes the strict gates, or if the two measurements agree within
+  // the refine radius (a weak feature pose that is still several pixels
+  // off left its error in the map for the rest of a run).
+  reloc_seed_ok_ = found && (passes(e, strict) || agreement_px <= static_cast<double>(config_.refine_radius_px));
+  PoseEstimate best = e;  // reported measures when nothing passes: the attempt with most inliers
+  t = now_ms();
+  if (reloc_order_count_ == 0) rank_reloc_keyframes();
+  for (int j = 0; !found && j < config_.reloc_keyframes_per_frame && r.features > 0; ++j) {
+    const int kf = next_reloc_keyframe();
+    if (kf < 0) break;
+    e = PoseEstimate{};
+    found = reloc_with_keyframe(kf, &e, &r) && passes(e, strict);
+    reloc_seed_ok_ = found;
+    if (found || e.inliers > best.inliers) best = e;
+  }
+  lap(Stage::kReloc, &t, &r);
+  fill_measures(best, &r);
+  if (found) {
+    strict_frames_left_ = found_confirmed ? 0 : config_.strict_frames;
+    accept(best, frame_index, TrackState::kRelocalised, &r);
+  } else {
+    r.state = TrackState::kLost;
+  }
+  return r;
+}
+
+// Orders the alive keyframes by how close their view is to the last good
+// pose (camera centre distance plus viewing angle at the last tracked
+// depth): the scope most often comes back near where it was lost.
+void TrackerImpl::rank_reloc_keyframes() {
+  const Vec3 centre = -(T_last_.rotation().transpose() * T_last_.translation());
+  int n = 0;
+  for (int id = 0; id < map_.keyframe_capacity() && n < kMaxKeyframes; ++id)
+    if (map_.keyframe(id).alive) reloc_order_[static_cast<std::size_t>(n++)] = id;
+  const auto cost = [&](int id) {
+    const SE3& T = map_.keyframe(id).T_camera_model;
+    const Vec3 c = -(T.rotation().transpose() * T.translation());
+    return (c - centre).norm() + last_depth_mm_ * pose_delta(T, T_last_).angle_deg * M_PI / 180.0;
+  };
+  std::sort(reloc_order_.begin(), reloc_order_.begin() + n, [&](int a, int b) { return cost(a) < cost(b); });
+  reloc_order_count_ = n;
+  reloc_cursor_ = 0;
+}
+
+// The next keyframe of the ranked order (cycling), skipping culled ones; -1
+// when there is none.
+int TrackerImpl::next_reloc_keyframe() {
+  for (int tries = 0; tries < reloc_order_count_; ++tries) {
+    const int id = reloc_order_[static_cast<std::size_t>(reloc_cursor_)];
+    reloc_cursor_ = (reloc_cursor_ + 1) % reloc_order_count_;
+    if (map_.keyframe(id).alive) return id;
+  }
+  return -1;
+}
+
+// Brute-force matches of this frame against one keyframe's linked map
+// points, a P3P RANSAC pose, then tracking by projection from it.
+bool TrackerImpl::reloc_with_keyframe(int keyframe_id, PoseEstimate* e, TrackResult* r) {
+  const Keyframe& kf = map_.keyframe(keyframe_id);
+  FeatureSet& train = *train_;
+  train.clear();
+  train.width = config_.width;
+  train.height = config_.height;
+  int n = 0;
+  for (int i = 0; i < kf.link_count && n < kMaxKeypoints; ++i) {
+    const KeyframeLink& l = kf.links[i];
+    const MapPoint* p = map_.linked_point(l);
+    if (!p) continue;
+    const auto ns = static_cast<std::size_t>(n++);
+    train.keypoints[ns] = Keypoint{l.x, l.y, l.angle_deg, 0.f, l.octave};
+    train.descriptors[ns] = p->descriptor;
+    train_point_[ns] = l.point;
+  }
+  train.count = n;
+  if (n < config_.min_inliers) return false;
+  const FeatureSet& f = *features_;
+  matcher_.match_brute_force(f, train, match_of_query_.data(), nullptr);
+  int c = 0;
+  for (int q = 0; q < f.count; ++q) {
+    const int m = match_of_query_[static_cast<std::size_t>(q)];
+    if (m < 0) continue;
+    const auto cs = static_cast<std::size_t>(c++);
+    corr_point_[cs] = train_point_[static_cast<std::size_t>(m)];
+    corr_p_[cs] = map_.point(corr_point_[cs]).p_model;
+    corr_px_[cs] = kp_ideal_[static_cast<std::size_t>(q)];
+    corr_info_[cs] = octave_info_[static_cast<std::size_t>(f.keypoints[static_cast<std::size_t>(q)].octave)];
+    corr_kp_[cs] = q;
+  }
+  corr_count_ = c;
+  if (c < config_.min_inliers) return false;
+  const Correspondences corr{corr_p_.data(), corr_px_.data(), corr_info_.data(), c};
+  SE3 T;
+  PnpRansacSummary s;
+  if (!ransac_.solve(corr, K_, &T, &s)) return false;
+  render_at(T);
+  for (int k = 0; k < f.count; ++k) kp_inlier_[static_cast<std::size_t>(k)] = 0;
+  return track_from(T, config_.search_radius_px, e, r);
+}
+
+}  // namespace st

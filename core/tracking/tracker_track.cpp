@@ -1,0 +1,664 @@
+// Frame-to-map tracking: features inside the organ rendered at the
+// prediction, search by projection of the local map, robust LM pose twice
+// (prediction, then refined pose), quality measures at the final pose and
+// the state decision. Tracking thread; allocates nothing.
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+
+#include "core/base/histogram_rank.h"
+#include "core/tracking/tracker_impl.h"
+
+namespace st {
+
+namespace {
+
+Vec3 camera_centre(const SE3& T_camera_model) { return -(T_camera_model.rotation().transpose() * T_camera_model.translation()); }
+
+// Depth tolerance of "this point is the visible surface": 3% plus 2 mm
+// covers raster quantisation and a prediction a few mm off.
+bool visible_at_depth(double z_mm, float raster_depth_mm) {
+  return raster_depth_mm > 0.f && z_mm <= 1.03 * static_cast<double>(raster_depth_mm) + 2.0;
+}
+
+// How far (level-0 px) the final pose may move the view from the render's
+// pose before the quality measures need a new render.
+constexpr double kReuseRenderPx = 8.0;
+
+// Dead reckoning also aligns from the constant-velocity prediction when the
+// image-motion prior moved the prediction by more than this (level-0 px):
+// motion_prior() leaves a prediction alone below 4 px.
+constexpr double kAlternativeStartPx = 4.0;
+
+}  // namespace
+
+bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
+  const GrayView organ = with_organ_mask && config_.use_mask && raster_valid_ ? raster_.mask() : GrayView{};
+  FeatureSet& f = *features_;
+  orb_.set_threshold_scale(fast_threshold_scale(luma, organ, r));
+  r->fast_threshold_scale = orb_.threshold_scale();
+  if (!orb_.extract(luma, organ, valid_view_, f)) f.clear();
+  for (int k = 0; k < f.count; ++k) {
+    const Keypoint& kp = f.keypoints[static_cast<std::size_t>(k)];
+    const Vec2 px(static_cast<double>(kp.x), static_cast<double>(kp.y));
+    Vec2& ideal = kp_ideal_[static_cast<std::size_t>(k)];
+    // A keypoint whose undistortion does not converge keeps its best
+    // estimate; a non-finite one is dropped by the solvers' validity test.
+    if (!distorted_ || !camera_.undistort_pixel(px, &ideal)) ideal = distorted_ ? ideal : px;
+    kp_inlier_[static_cast<std::size_t>(k)] = 0;
+  }
+  grid_.build(f);
+  r->features = f.count;
+  return f.count > 0;
+}
+
+// The FAST threshold scale of this frame: for a dim frame
+// (TrackerConfig::fast_reference_luma) the median block-mean luma over the
+// valid mask and, if given, the organ mask (ValidMaskBuilder::
+// median_block_mean), above video black (16), over the reference's; for a
+// veiled one (fast_reference_contrast) the organ's texture contrast over
+// the reference's; the smaller one, at most 1. 1 when both are off or
+// there is no pixel to measure. Sets r->low_contrast when the contrast's
+// scale is the one taken.
+float TrackerImpl::fast_threshold_scale(GrayView luma, GrayView organ, TrackResult* r) const {
+  constexpr int kBlack = 16;
+  if (valid_view_.empty()) return 1.f;
+  double s = 1.0;
+  if (config_.fast_reference_luma > kBlack) {
+    const int median = valid_mask_.median_block_mean(valid_view_, organ);
+    if (median >= 0) s = std::min(1.0, static_cast<double>(median - kBlack) / (config_.fast_reference_luma - kBlack));
+  }
+  if (config_.fast_reference_contrast > 0) {
+    const double contrast = organ_contrast(luma, organ);
+    if (contrast >= 0 && contrast < s * config_.fast_reference_contrast) {
+      s = contrast / config_.fast_reference_contrast;
+      r->low_contrast = true;
+    }
+  }
+  return static_cast<float>(std::clamp(s, 0.0, 1.0));
+}
+
+// The organ's texture contrast in this frame (8-bit luma units): the
+// median, over a 16-px grid of places inside the valid mask and (if given)
+// the organ mask, of |B(x+4, y) - B(x, y)| + |B(x, y+4) - B(x, y)|, B the
+// mean of the 4x4 block at (x, y). Block means keep the sensor noise out
+// (a 16th of its variance), so that what is measured is the tissue's
+// texture: a veil (surgical smoke, a fogged lens) or a dimmer light scales
+// it down with the intensity differences FAST's thresholds test. -1 when
+// no place qualifies.
+double TrackerImpl::organ_contrast(GrayView luma, GrayView organ) const {
+  constexpr int kStep = 16, kBlock = 4;
+  constexpr int kBins = 1024;  // in 1/16 luma units (block sums of 16 pixels)
+  std::array<int, kBins> hist{};
+  long long n = 0;
+  const GrayView& v = valid_view_;
+  const auto block = [&](int x, int y) {
+    int sum = 0;
+    for (int j = 0; j < kBlock; ++j) {
+      const std::uint8_t* row = luma.row(y + j) + x;
+      for (int i = 0; i < kBlock; ++i) sum += row[i];
+    }
+    return sum;
+  };
+  for (int y = 0; y + 2 * kBlock <= luma.height; y += kStep) {
+    const std::uint8_t* vrow = v.row((y + kBlock) * v.height / luma.height);
+    const std::uint8_t* orow = organ.empty() ? nullptr : organ.row((y + kBlock) * organ.height / luma.height);
+    for (int x = 0; x + 2 * kBlock <= luma.width; x += kStep) {
+      const int cx = x + kBlock;
+      if (!vrow[cx * v.width / luma.width] || (orow && !orow[cx * organ.width / luma.width])) continue;
+      const int b = block(x, y);
+      const int d = std::abs(block(x + kBlock, y) - b) + std::abs(block(x, y + kBlock) - b);
+      ++hist[static_cast<std::size_t>(std::min(d, kBins - 1))];
+      ++n;
+    }
+  }
+  if (n == 0) return -1.0;
+  return static_cast<double>(histogram_rank(hist, (n - 1) / 2)) / (kBlock * kBlock);
+}
+
+// Projects every alive map point at T_camera_model into the local map
+// (bounded by the projection buffers): in front, inside the image, within
+// the scale range and 60 degrees of the creating view, and (with the raster
+// rendered near that pose) not hidden behind the mesh.
+//
+// The occlusion test reads the depth buffer at scattered pixels (0.9 MB at
+// 1280x720's half-size raster, beyond the core's fastest caches): that read
+// was ~60 % of this loop's samples. So a point that passes the cheap tests
+// waits in a short queue while its depth is prefetched, and is tested and
+// slotted when it leaves; the queue keeps id order, so the selection is the
+// same as testing each point at once.
+int TrackerImpl::select_local_map(const SE3& T_camera_model, bool check_occlusion) {
+  searched_valid_ = false;  // a new selection: no earlier search covers it
+  const Vec3 centre = camera_centre(T_camera_model);
+  const double log_scale = std::log(static_cast<double>(config_.scale_factor));
+  const int capacity = static_cast<int>(projected_.size());
+  const ImageView<const float> depth = raster_.depth();
+  std::fill(cap_count_.begin(), cap_count_.end(), 0);
+  int n = 0;
+  struct Pending {
+    int id;
+    double z_mm, dist;
+    Vec2 ideal;
+    const float* raster_depth;  // null: no occlusion test
+  };
+  constexpr int kQueue = 8;
+  std::array<Pending, kQueue> queue;
+  int head = 0, queued = 0;
+  const auto admit = [&](const Pending& c) {
+    if (n >= capacity) return;  // full: where the unqueued loop stopped
+    if (c.raster_depth && !visible_at_depth(c.z_mm, *c.raster_depth)) return;
+    const MapPoint& p = map_.point(c.id);
+    const int slot = local_map_slot(c.ideal, p.last_seen_frame, &n);
+    if (slot < 0) return;
+    const Vec2 px = distorted_ ? camera_.distort_pixel(c.ideal) : c.ideal;
+    const double ref = static_cast<double>(p.ref_distance_mm);
+    const int octave =
+        std::clamp(p.ref_octave + static_cast<int>(std::lround(std::log(ref / c.dist) / log_scale)),
+                   0, config_.levels - 1);
+    ProjectedPoint& q = projected_[static_cast<std::size_t>(slot)];
+    q.x = static_cast<float>(px.x());
+    q.y = static_cast<float>(px.y());
+    q.predicted_octave = octave;
+    q.ref_angle_deg = p.ref_angle_deg;
+    q.descriptor = p.descriptor;
+    local_ids_[static_cast<std::size_t>(slot)] = c.id;
+  };
+  for (int id = 0; id < map_.point_high_water() && n < capacity; ++id) {
+    const MapPoint& p = map_.point(id);
+    if (!p.alive) continue;
+    const Vec3 p_camera = T_camera_model * p.p_model;
+    if (p_camera.z() < 1.0) continue;
+    const Vec3 ray = p.p_model - centre;
+    const double dist = ray.norm(), ref = static_cast<double>(p.ref_distance_mm);
+    if (dist < 0.4 * ref || dist > 2.5 * ref || ray.dot(p.view_dir_model) < 0.5 * dist) continue;
+    const Vec2 ideal = K_.project(p_camera);
+    if (!K_.in_image(ideal, 2.0)) continue;
+    const float* raster_depth = nullptr;
+    if (check_occlusion) {
+      const Vec2 rp = raster_.full_to_raster(ideal);
+      const int x = static_cast<int>(std::lround(rp.x())), y = static_cast<int>(std::lround(rp.y()));
+      if (!depth.contains(x, y)) continue;
+      raster_depth = &depth(x, y);
+      __builtin_prefetch(raster_depth);
+    }
+    if (queued == kQueue) {
+      admit(queue[static_cast<std::size_t>(head)]);
+      head = (head + 1) % kQueue;
+      --queued;
+    }
+    queue[static_cast<std::size_t>((head + queued) % kQueue)] =
+        Pending{id, p_camera.z(), dist, ideal, raster_depth};
+    ++queued;
+  }
+  for (; queued > 0; --queued, head = (head + 1) % kQueue)
+    admit(queue[static_cast<std::size_t>(head)]);
+  local_count_ = n;
+  return n;
+}
+
+// The local-map slot for a point projecting at ideal: a new one (n grows)
+// while its cell has room, else the cell's slot with the oldest score if
+// this point's is newer, else -1 (not searched). Uncapped: always new.
+int TrackerImpl::local_map_slot(const Vec2& ideal, int score, int* n) {
+  const int per_cell = uncapped_ ? 0 : config_.local_map_per_cell;
+  if (per_cell <= 0) return (*n)++;
+  const int cx = std::clamp(static_cast<int>(ideal.x() * kCapCellsX / K_.width), 0, kCapCellsX - 1);
+  const int cy = std::clamp(static_cast<int>(ideal.y() * kCapCellsY / K_.height), 0, kCapCellsY - 1);
+  const auto cell = static_cast<std::size_t>(cy * kCapCellsX + cx);
+  const std::size_t base = cell * kMaxPerCell;
+  std::int32_t& count = cap_count_[cell];
+  if (count < per_cell) {
+    cap_slot_[base + static_cast<std::size_t>(count)] = *n;
+    cap_score_[base + static_cast<std::size_t>(count++)] = score;
+    return (*n)++;
+  }
+  std::size_t oldest = base;
+  for (std::size_t j = base + 1; j < base + static_cast<std::size_t>(per_cell); ++j)
+    if (cap_score_[j] < cap_score_[oldest]) oldest = j;
+  if (score <= cap_score_[oldest]) return -1;
+  cap_score_[oldest] = score;
+  return cap_slot_[oldest];
+}
+
+// Search by projection with radius_px (scaled by the predicted octave) into
+// the correspondence arrays. Returns their count.
+int TrackerImpl::match_local_map(float radius_px) {
+  // A point whose circle now lies inside the circle its last search of this
+  // selection covered, and which found no candidate within max_distance
+  // there, cannot match now (its candidates are a subset): not searched
+  // again. Exact: the matches are the same as searching every point.
+  const bool prune = searched_valid_;
+  const std::span<const std::uint16_t> best = matcher_.best_distances();
+  const int max_distance = matcher_.config().max_distance;
+  for (int i = 0; i < local_count_; ++i) {
+    const auto is = static_cast<std::size_t>(i);
+    ProjectedPoint& q = projected_[is];
+    const float searched_radius = q.radius_px;  // the last search's (only this function sets it)
+    q.radius_px = radius_px * octave_scale_[static_cast<std::size_t>(q.predicted_octave)];
+    if (prune) {
+      const float dx = q.x - searched_x_[is], dy = q.y - searched_y_[is];
+      const float slack = searched_radius - q.radius_px - 1e-3f;  // how far the circle may move and stay inside
+      const bool inside = slack >= 0.f && dx * dx + dy * dy <= slack * slack;
+      search_active_[is] = !(inside && best[is] > max_distance);
+    }
+    searched_x_[is] = q.x;
+    searched_y_[is] = q.y;
+  }
+  searched_valid_ = true;
+  matcher_.search_by_projection(projected_.data(), local_count_, *features_, grid_, match_of_point_.data(),
+                                dist_of_point_.data(), prune ? search_active_.data() : nullptr);
+  int c = 0;
+  for (int i = 0; i < local_count_ && c < kMaxKeypoints; ++i) {
+    const int k = match_of_point_[static_cast<std::size_t>(i)];
+    if (k < 0) continue;
+    const auto cs = static_cast<std::size_t>(c++);
+    const int id = local_ids_[static_cast<std::size_t>(i)];
+    corr_p_[cs] = map_.point(id).p_model;
+    corr_px_[cs] = kp_ideal_[static_cast<std::size_t>(k)];
+    corr_info_[cs] = octave_info_[static_cast<std::size_t>(features_->keypoints[static_cast<std::size_t>(k)].octave)];
+    corr_point_[cs] = id;
+    corr_kp_[cs] = k;
+  }
+  corr_count_ = c;
+  return c;
+}
+
+bool TrackerImpl::solve_pose(SE3* T_camera_model, PoseEstimate* e) {
+  const Correspondences c{corr_p_.data(), corr_px_.data(), corr_info_.data(), corr_count_};
+  PoseSolverSummary s;
+  const bool ok = corr_count_ >= 6 && solver_.solve(c, K_, T_camera_model, &s);
+  e->matches = corr_count_;
+  e->inliers = ok ? s.num_inliers : 0;
+  e->rms_px = ok ? s.rms_reprojection_px : 0.0;
+  const auto flags = solver_.inliers();
+  for (int i = 0; i < corr_count_; ++i)
+    corr_inlier_[static_cast<std::size_t>(i)] = ok && i < static_cast<int>(flags.size()) ? flags[static_cast<std::size_t>(i)] : 0;
+  return ok && e->inliers > 0;
+}
+
+// Moves the selected local map to T_camera_model without repeating the
+// selection tests (visibility, scale, occlusion): the refine pass reuses the
+// set chosen at the prediction, only the pixel positions change.
+void TrackerImpl::reproject_local_map(const SE3& T_camera_model) {
+  for (int i = 0; i < local_count_; ++i) {
+    const auto is = static_cast<std::size_t>(i);
+    const Vec3 p_camera = T_camera_model * map_.point(local_ids_[is]).p_model;
+    ProjectedPoint& q = projected_[is];
+    if (p_camera.z() < 1.0) {
+      q.x = q.y = -1e6f;  // behind the camera now: no candidate can match
+      continue;
+    }
+    const Vec2 ideal = K_.project(p_camera);
+    const Vec2 px = distorted_ ? camera_.distort_pixel(ideal) : ideal;
+    q.x = static_cast<float>(px.x());
+    q.y = static_cast<float>(px.y());
+  }
+}
+
+// Dead reckoning while lost: the camera's motion since the reference frame
+// (the last tracked frame, then each dead-reckoned one) from an ORB pyramid
+// level of both and the mesh rendered at the reference pose (DirectAligner).
+// *T: in, the prediction; out, the estimate if the alignment held (at a
+// coarser level if the finest one's failed: DirectAligner::align's
+// allow_coarser). The current frame then becomes the next reference, at
+// the estimate; if it failed (the organ left the view, say) the chain ends
+// and the caller's prediction carries on. Renders at the reference pose.
+//
+// T_alternative: the same prediction without the whole-image motion
+// (constant velocity). Where the two differ by more than
+// kAlternativeStartPx, the alignment also starts from it and the estimate
+// from the finer level, then the one that explains the image better
+// (smaller median residual), is kept. In a
+// fast swing the image-motion prior can be the worse start (a swing along
+// the organ, with parallax between it and the background): on the
+// simulated stomach (fast seed 2, 640x360) it put the prediction 28 px off
+// where constant velocity was 3 px off, and the alignment from there
+// settled 22 px off (a wrong basin; its contrast gain of 0.04 now has
+// align() refuse it as well). From both starts the guess stayed within
+// 1.5-3.7 px for the next 35 frames.
+bool TrackerImpl::dead_reckon(SE3* T_camera_model, const SE3& T_alternative) {
+  if (!config_.use_image_motion || !aligner_.has_reference()) return false;
+  const GrayView image = orb_.pyramid().level(align_level_);  // this frame's: extract() ran
+  render_at(aligner_.reference_pose());
+  SE3 T = *T_camera_model;
+  DirectAlignSummary fit;
+  bool ok = aligner_.align(image, valid_view_, raster_, camera_, &T, &fit, true);
+  if (image_shift_px(*T_camera_model, T_alternative) > kAlternativeStartPx) {
+    SE3 T_alt = T_alternative;
+    DirectAlignSummary fit_alt;
+    // Residuals compare within a level; an estimate from a finer level wins.
+    if (aligner_.align(image, valid_view_, raster_, camera_, &T_alt, &fit_alt, true) &&
+        (!ok || fit_alt.level < fit.level ||
+         (fit_alt.level == fit.level && fit_alt.residual_median < fit.residual_median))) {
+      T = T_alt;
+      ok = true;
+    }
+  }
+  if (!ok) {
+    aligner_.forget_reference();
+    return false;
+  }
+  *T_camera_model = T;
+  aligner_.keep_reference(image, valid_view_, T);
+  return true;
+}
+
+// A pose that only the relaxed gates pass needs a second, independent
+// measurement: this frame aligned directly (DirectAligner) against the
+// anchor, the last frame whose pose passed the normal gates with margin
+// (anchor_min_inlier_ratio), starting from T_guess. Measured against the
+// anchor, not chained frame to frame, so a slow drift of the feature poses
+// cannot hide in small steps. Returns how far apart (level-0 px over the
+// organ) the aligned pose and T_features put the organ, or kUnknownMotion
+// if there is no anchor or the alignment fails.
+double TrackerImpl::anchor_agreement_px(const SE3& T_guess, const SE3& T_features) {
+  if (!config_.use_image_motion || !anchor_.has_reference()) return kUnknownMotion;
+  render_at(anchor_.reference_pose());
+  SE3 T = T_guess;
+  if (!anchor_.align(orb_.pyramid().level(align_level_), valid_view_, raster_, camera_, &T)) return kUnknownMotion;
+  return view_difference_px(T, T_features);
+}
+
+// How far apart two poses put the organ in view (level-0 pixels): organ
+// points on a 16 x 9 grid of the current render (raster_, at whatever pose
+// it was made), projected at a and at b; the mean distance
+// (kUnknownMotion if no grid point is on the organ). Unlike
+// image_shift_px it does not count a turn that a sideways move undoes in
+// the image, and it covers the whole organ in view, not only where a
+// handful of features sit.
+double TrackerImpl::view_difference_px(const SE3& a, const SE3& b) const {
+  if (!raster_valid_) return kUnknownMotion;
+  const ImageView<const float> depth = raster_.depth();
+  const Pinhole& Kr = raster_.camera();
+  const SE3 model_from_raster = raster_pose_.inverse();
+  double sum = 0;
+  int n = 0;
+  for (int gy = 0; gy < 9; ++gy)
+    for (int gx = 0; gx < 16; ++gx) {
+      const int x = (2 * gx + 1) * depth.width / 32, y = (2 * gy + 1) * depth.height / 18;
+      const float d = depth(x, y);
+      if (!(d > 0.f)) continue;
+      const Vec3 p = model_from_raster * Kr.unproject(Vec2(x, y), d);
+      const Vec3 pa = a * p, pb = b * p;
+      if (!(pa.z() > 1.0) || !(pb.z() > 1.0)) continue;
+      sum += (K_.project(pa) - K_.project(pb)).norm();
+      ++n;
+    }
+  return n > 0 ? sum / n : kUnknownMotion;
+}
+
+// Image motion (level-0 pixels) between two poses for the scene at the last
+// tracked depth: rotation plus parallax of the camera centre.
+double TrackerImpl::image_shift_px(const SE3& a, const SE3& b) const {
+  const PoseDelta d = pose_delta(a, b);
+  return K_.fx * (d.angle_deg * M_PI / 180.0 + (camera_centre(a) - camera_centre(b)).norm() / last_depth_mm_);
+}
+
+// The constant-velocity prediction T_predicted (from T_reference, the last
+// pose), turned about the camera centre so that the view moves as the
+// measured whole-image motion (shift of the view centre and roll) says.
+// Under a sudden turn (with motion blur) the constant-velocity guess is
+// tens of pixels off; the motion of small blurred images is not.
+// Corrections that move no image point by 4 px or more are left alone:
+// there the constant-velocity prediction is as good.
+SE3 TrackerImpl::motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted) {
+  const Vec2 centre(K_.cx, K_.cy);
+  const Vec3 p_model = T_reference.inverse() * K_.unproject(centre, last_depth_mm_);
+  const Vec3 p_camera = T_predicted * p_model;
+  ViewMotion guess;
+  guess.shift_px = p_camera.z() > 1.0 ? Vec2(K_.project(p_camera) - centre) : Vec2(Vec2::Zero());
+  // The predicted roll: the turn of the image plane's axes (camera x, y)
+  // from the reference to the prediction, about the optical axis.
+  const Mat3 R = T_predicted.rotation() * T_reference.rotation().transpose();
+  guess.roll_rad = std::atan2(R(1, 0) - R(0, 1), R(0, 0) + R(1, 1));
+  ViewMotion measured;
+  // The whole view, neutral surfaces included: the occluder mask serves the
+  // organ's features and alignment, and taking grey background (abdominal
+  // wall, a pale neighbour organ) out of this prior only changed its
+  // answers (photo-textured invivo seed 2: 0.7 -> 44.7 % lost).
+  if (!config_.use_image_motion || !motion_.update(luma, valid_scene_, centre, guess, &measured)) return T_predicted;
+  const Vec2 residual = measured.shift_px - guess.shift_px;
+  const double residual_roll = measured.roll_rad - guess.roll_rad;
+  const double reach = std::hypot(std::max(K_.cx, K_.width - K_.cx), std::max(K_.cy, K_.height - K_.cy));
+  if (residual.norm() + std::abs(residual_roll) * reach < 4.0) return T_predicted;
+  const Vec3 omega(-residual.y() / K_.fy, residual.x() / K_.fx, residual_roll);
+  return SE3(so3_exp(omega), Vec3::Zero()) * T_predicted;
+}
+
+// The first pass explains few of its matches, or far fewer points than the
+// last frame: the motion changed faster than the constant-velocity
+// prediction allows (a sudden turn), so the search must go wider.
+bool TrackerImpl::weak_first_pass(bool solved, const PoseEstimate& e) const {
+  if (!solved) return true;
+  return e.inlier_ratio() < 0.75 || 2 * e.inliers < last_inliers_;
+}
+
+// Pose from the features already extracted, starting at T_predicted (the
+// raster must hold a render near it: occlusion test of the local map).
+// The local map is selected once; a weak first pass is repeated with the
+// wide radius; the refine pass re-projects the same points at the solved
+// pose with a radius that covers how far the solve moved the view.
+bool TrackerImpl::track_from(const SE3& T_predicted, float first_radius_px, PoseEstimate* e, TrackResult* r) {
+  double t = now_ms();
+  r->local_map = select_local_map(T_predicted, true);
+  float radius = first_radius_px;
+  if (match_local_map(radius) < 2 * config_.min_inliers && config_.wide_radius_px > radius)
+    match_local_map(radius = config_.wide_radius_px);
+  lap(Stage::kMatch, &t, r);
+  SE3 T = T_predicted;
+  bool solved = solve_pose(&T, e);
+  lap(Stage::kPose, &t, r);
+  if (weak_first_pass(solved, *e) && config_.wide_radius_px > radius) {
+    if (config_.local_map_per_cell > 0) {  // a hard frame: search the whole local map
+      uncapped_ = true;
+      r->local_map = select_local_map(T_predicted, true);
+      uncapped_ = false;
+    }
+    match_local_map(config_.wide_radius_px);
+    lap(Stage::kMatch, &t, r);
+    SE3 T_wide = T_predicted;
+    PoseEstimate wide;
+    if (solve_pose(&T_wide, &wide) && (!solved || wide.inliers > e->inliers)) {
+      T = T_wide;
+      *e = wide;
+      solved = true;
+    }
+    lap(Stage::kPose, &t, r);
+  }
+  if (!solved) return false;
+  const double moved_px = image_shift_px(T_predicted, T);
+  if (moved_px > static_cast<double>(config_.wide_radius_px)) {
+    select_local_map(T, true);  // the view moved far: the predicted selection no longer fits
+  } else {
+    reproject_local_map(T);
+  }
+  match_local_map(moved_px > static_cast<double>(config_.refine_radius_px) ? config_.search_radius_px
+                                                                          : config_.refine_radius_px);
+  lap(Stage::kMatch, &t, r);
+  const bool second = solve_pose(&T, e);
+  lap(Stage::kPose, &t, r);
+  if (!second) return false;
+  e->solved = true;
+  e->T_camera_model = T;
+  measure_final(e);
+  lap(Stage::kRaster, &t, r);
+  return true;
+}
+
+// Mask agreement (inliers on the organ and not hidden), inlier spread over
+// a 4x4 image grid, mean inlier depth; marks the keypoints' match status.
+// Each inlier's model point is looked up in the render at its own pixel
+// there, so the render of the prediction serves while the final pose moved
+// the image by at most kReuseRenderPx (occlusion barely changes over a few
+// pixels); beyond, the organ is rendered again at the final pose.
+void TrackerImpl::measure_final(PoseEstimate* e) {
+  const SE3& T = e->T_camera_model;
+  double depth_sum = 0, chi2_sum = 0;
+  int depth_n = 0;
+  for (int i = 0; i < corr_count_; ++i)
+    if (corr_inlier_[static_cast<std::size_t>(i)]) {
+      const auto is = static_cast<std::size_t>(i);
+      const Vec3 p_camera = T * corr_p_[is];
+      depth_sum += p_camera.z();
+      chi2_sum += corr_info_[is] * (K_.project(p_camera) - corr_px_[is]).squaredNorm();
+      ++depth_n;
+    }
+  e->mean_depth_mm = depth_n > 0 ? depth_sum / depth_n : 100.0;
+  e->whitened_rms = depth_n > 0 ? std::sqrt(chi2_sum / depth_n) : 0.0;
+  if (!raster_valid_ || image_shift_px(raster_pose_, T) > kReuseRenderPx) render_at(T);
+  const ImageView<const float> depth = raster_.depth();
+  std::uint32_t cells = 0;
+  int agree = 0;
+  for (int i = 0; i < corr_count_; ++i) {
+    const auto is = static_cast<std::size_t>(i);
+    const int k = corr_kp_[is];
+    kp_inlier_[static_cast<std::size_t>(k)] = corr_inlier_[is] ? 2 : 1;
+    if (!corr_inlier_[is]) continue;
+    const Vec2& px = corr_px_[is];
+    const Vec3 p_render = raster_pose_ * corr_p_[is];
+    const Vec2 rp = raster_.full_to_raster(K_.project(p_render));
+    const int x = static_cast<int>(std::lround(rp.x())), y = static_cast<int>(std::lround(rp.y()));
+    if (p_render.z() > 1.0 && depth.contains(x, y) && visible_at_depth(p_render.z(), depth(x, y))) ++agree;
+    const int cx = std::clamp(static_cast<int>(4.0 * px.x() / K_.width), 0, 3);
+    const int cy = std::clamp(static_cast<int>(4.0 * px.y() / K_.height), 0, 3);
+    cells |= 1u << (cy * 4 + cx);
+  }
+  e->mask_agreement = e->inliers > 0 ? static_cast<double>(agree) / e->inliers : 0.0;
+  e->spread_cells = std::popcount(cells);
+}
+
+QualityGates TrackerImpl::gates(bool strict) const {
+  QualityGates g;
+  g.min_inliers = config_.min_inliers;
+  g.min_inlier_ratio = config_.min_inlier_ratio;
+  g.max_rms_px = config_.max_rms_px;
+  g.min_mask_agreement = config_.min_mask_agreement;
+  if (strict) {
+    g.min_inliers = static_cast<int>(std::ceil(config_.min_inliers * config_.strict_inlier_factor));
+    g.max_rms_px = 0.8 * config_.max_rms_px;
+    g.min_mask_agreement = std::max(config_.min_mask_agreement, 0.95);
+    g.min_spread_cells = config_.min_spread_cells;
+  }
+  return g;
+}
+
+// Of this frame's inliers, the share that are anchored map points.
+double TrackerImpl::anchored_share() const {
+  int n = 0, anchored = 0;
+  for (int i = 0; i < corr_count_; ++i)
+    if (corr_inlier_[static_cast<std::size_t>(i)]) {
+      ++n;
+      anchored += map_.point(corr_point_[static_cast<std::size_t>(i)]).anchored ? 1 : 0;
+    }
+  return n > 0 ? static_cast<double>(anchored) / n : 0.0;
+}
+
+// The normal gates with the inlier ratio's lowered to
+// confirmed_min_inlier_ratio: a pose that direct alignment must confirm.
+QualityGates TrackerImpl::confirm_gates() const {
+  QualityGates g = gates(false);
+  g.min_inlier_ratio = std::min(g.min_inlier_ratio, config_.confirmed_min_inlier_ratio);
+  return g;
+}
+
+bool TrackerImpl::passes(const PoseEstimate& e, const QualityGates& g) const {
+  return e.solved && e.T_camera_model.all_finite() && e.inliers >= g.min_inliers &&
+         e.inlier_ratio() >= g.min_inlier_ratio && e.whitened_rms <= g.max_rms_px &&
+         e.mask_agreement >= g.min_mask_agreement && e.spread_cells >= g.min_spread_cells;
+}
+
+TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
+  TrackResult r;
+  double t = now_ms();
+  const SE3 T_predicted = motion_prior(luma, T_last_, velocity_ * T_last_);
+  lap(Stage::kPyramid, &t, &r);  // image preparation: the small blurred image and its alignment
+  render_at(T_predicted);
+  lap(Stage::kRaster, &t, &r);
+  extract(luma, true, &r);
+  lap(Stage::kDetect, &t, &r);
+  PoseEstimate e;
+  bool ok = track_from(T_predicted, config_.search_radius_px, &e, &r);
+  if (ok) {
+    r.pose_jump_deg = pose_delta(T_predicted, e.T_camera_model).angle_deg;
+    r.pose_jump_mm = (camera_centre(T_predicted) - camera_centre(e.T_camera_model)).norm();
+    const bool plausible = r.pose_jump_deg <= config_.max_jump_deg && r.pose_jump_mm <= config_.max_jump_mm;
+    ok = plausible && passes(e, gates(strict_frames_left_ > 0));
+    if (!ok && plausible && strict_frames_left_ == 0 && passes(e, confirm_gates())) {
+      const double agreement_px = anchor_agreement_px(T_predicted, e.T_camera_model);
+      ok = agreement_px <= config_.confirm_agreement_px;
+      r.confirmed_by_alignment = ok;
+    }
+  }
+  fill_measures(e, &r);
+  if (ok) {
+    accept(e, frame_index, TrackState::kTracking, &r);
+  } else {
+    r.state = TrackState::kLost;
+    lost_ = true;
+    lost_frames_ = 0;
+    lost_velocity_ = velocity_;
+    T_dead_reckoned_ = T_predicted;  // this frame's best guess (image motion included)
+    // Measured from the last tracked frame where the organ allows.
+    if (dead_reckon(&T_dead_reckoned_, velocity_ * T_last_)) lost_velocity_ = T_dead_reckoned_ * T_last_.inverse();
+    reloc_order_count_ = 0;  // ranked at the first relocalisation attempt
+    velocity_ = SE3();
+  }
+  return r;
+}
+
+void TrackerImpl::fill_measures(const PoseEstimate& e, TrackResult* r) const {
+  r->matches = e.matches;
+  r->inliers = e.inliers;
+  r->inlier_ratio = e.inlier_ratio();
+  r->rms_px = e.rms_px;
+  r->whitened_rms_px = e.whitened_rms;
+  r->mask_agreement = e.mask_agreement;
+}
+
+// The frame passed its gates: report the pose, update velocity, counters and
+// (when useful and not under strict gates) insert a keyframe.
+void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState state, TrackResult* r) {
+  double t = now_ms();
+  r->state = state;
+  r->pose_valid = true;
+  r->T_camera_model = e.T_camera_model;
+  velocity_ = state == TrackState::kTracking ? e.T_camera_model * T_last_.inverse() : SE3();
+  // How far the view moved since the last frame (level-0 px): blur. After
+  // a lost spell, as dead reckoning measured it (kUnknownMotion if not).
+  const double motion_px = state == TrackState::kTracking      ? image_shift_px(T_last_, e.T_camera_model)
+                           : state == TrackState::kRelocalised ? lost_motion_px_
+                                                               : 0.0;
+  T_last_ = e.T_camera_model;
+  if (config_.use_image_motion) {  // where dead reckoning starts if the next frame is lost
+    const GrayView small = orb_.pyramid().level(align_level_);
+    aligner_.keep_reference(small, valid_view_, e.T_camera_model);
+    // The anchor that confirms weak poses must itself be clearly good: not
+    // confirmed, and with margin over the ratio gate.
+    if (!r->confirmed_by_alignment && e.inlier_ratio() >= config_.anchor_min_inlier_ratio)
+      anchor_.keep_reference(small, valid_view_, e.T_camera_model);
+  }
+  last_inliers_ = e.inliers;
+  last_depth_mm_ = e.mean_depth_mm;
+  lost_ = false;
+  lost_frames_ = 0;
+  update_counters(frame_index);
+  // No keyframe from a frame that moved fast: it is blurred, its pose is
+  // less accurate, and the keyframe's mesh-depth points would carry that
+  // error into the map for good (fast seed 4: 1-3 deg off after a burst).
+  // Under the strict gates after a relocalisation no keyframe is taken.
+  // The relocalised frame itself may seed one (the scope may have come back
+  // to a view the map hardly covers, and without new points the next frames
+  // cannot pass) when relocalise() judged its pose fit to (reloc_seed_ok_)
+  // and dead reckoning measured it as slow, so not blurred.
+  // A confirmed frame (relaxed ratio) may add one only if it stands mostly
+  // on anchored points, and its own points are not anchored.
+  bool may_add = state == TrackState::kRelocalised ? reloc_seed_ok_ : strict_frames_left_ == 0;
+  if (r->confirmed_by_alignment && anchored_share() < config_.confirmed_keyframe_min_anchored) may_add = false;
+  if (strict_frames_left_ > 0) --strict_frames_left_;
+  if (may_add && motion_px <= static_cast<double>(config_.keyframe_max_motion_px) && need_keyframe(e))
+    r->keyframe = add_keyframe(e.T_camera_model, frame_index, true, !r->confirmed_by_alignment) >= 0;
+  lap(Stage::kMap, &t, r);
+}
+
+}  // namespace st
