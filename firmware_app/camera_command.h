@@ -11,9 +11,9 @@ namespace st::app {
 int run_list_cameras(Args args);
 
 // scopetrack --camera ID --mesh FILE --calibration FILE [--out DIR] [--ring N]
-// [--no-mask]: tracks the live camera until SIGINT/SIGTERM. Exit 0 after a
+// [--config FILE] [--set KEY=VALUE]...: tracks the live camera until SIGINT/SIGTERM. Exit 0 after a
 // clean stop, 1 when the camera, mesh or calibration cannot be used, 2 on a
-// bad command line.
+// bad command line or settings.
 int run_camera(Args args);
 
 }  // namespace st::app

@@ -27,7 +27,8 @@ int run_check(Args args);
 Status check_sequence_for_replay(const LoadedSequence& sequence);
 
 // scopetrack --sequence DIR --out DIR [...]: replay (firmware_app/replay_command.cpp).
-// Options after DIR: --out DIR (required), --realtime, --no-mask, --ring N.
+// Options after DIR: --out DIR (required), --config FILE, --set KEY=VALUE, --ba-lag N,
+// --realtime, --ring N, --stream ENDPOINT (firmware_app/replay_command.cpp has them all).
 int run_replay(Args args);
 
 }  // namespace st::app

@@ -6,6 +6,7 @@
 
 #include "firmware_app/camera_command.h"
 #include "firmware_app/cli.h"
+#include "firmware_app/settings_args.h"
 
 namespace {
 
@@ -20,11 +21,15 @@ int run_help(st::app::Args);
 constexpr std::array kCommands = {
     st::app::Command{"--check", "DIR", "validate a sequence folder and say whether it is usable",
                      st::app::run_check},
-    st::app::Command{"--sequence", "DIR --out DIR [--realtime] [--no-mask] [--no-image-motion] [--no-ba] [--no-shape-ba] [--w-shape W] [--max-raster-triangles N] [--no-calibration-check] [--ring N] [--stream EP]",
+    st::app::Command{"--sequence",
+                     "DIR --out DIR [--config FILE] [--set KEY=VALUE]... [--ba-lag N] [--realtime] [--ring N] "
+                     "[--stream EP [--stream-wait N] [--texture-every K]]",
                      "replay a sequence through the tracker: trajectory.txt, frames.csv, summary.json in --out",
                      st::app::run_replay},
-    st::app::Command{"--camera", "ID --mesh FILE --calibration FILE [--out DIR] [--ring N] [--no-mask] [--no-calibration-check]",
+    st::app::Command{"--camera", "ID --mesh FILE --calibration FILE [--out DIR] [--ring N] [--config FILE] [--set KEY=VALUE]...",
                      "track a live libcamera camera until Ctrl-C (not yet run on hardware)", st::app::run_camera},
+    st::app::Command{"--print-config", "", "print the tracker's settings file: every key, its default, range and meaning",
+                     st::app::run_print_config},
     st::app::Command{"--list-cameras", "", "list the cameras libcamera finds", st::app::run_list_cameras},
     st::app::Command{"--version", "", "print the version", run_version},
     st::app::Command{"--help", "", "this text", run_help},

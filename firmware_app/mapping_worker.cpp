@@ -16,11 +16,7 @@ Status MappingWorker::configure(const TrackerConfig& config, const Mesh& mesh, c
   stop();
   configured_ = false;
   config_ = config;
-  BundleAdjusterOptions o;
-  o.w_shape = config.w_shape;
-  o.max_iterations = config.ba_max_iterations;
-  o.max_time_s = config.ba_max_time_s;
-  o.prior_release_f = config.registration_release_f;
+  BundleAdjusterOptions o = config.ba;
   if (config.ba_lag_frames > 0) {  // deterministic: iterations only (the solves' time limits vary with the machine)
     o.max_time_s = kUnboundedSolveS;
     config_.ba_global_max_time_s = kUnboundedSolveS;

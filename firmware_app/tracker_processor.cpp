@@ -89,7 +89,7 @@ std::string describe_calibration(const CalibrationCheck& c, const std::string& c
   char buf[640];
   std::snprintf(buf, sizeof buf,
                 "calibration suspect from frame %d: the video fits focal lengths %.3f x those of %s (F = %.0f;"
-                " README, \"A wrong calibration\"). Either the calibration is off (another scope's, or another"
+                " docs/design-notes.md, \"The focal-length test\"). Either the calibration is off (another scope's, or another"
                 " zoom's?) or the organ differs from its prior in shape; either way the poses may be off by"
                 " degrees and mm. Tracking went on. Check camera_matrix.",
                 c.suspect_frame, c.focal_scale, calibration_file.c_str(), c.focal_f);

@@ -1,17 +1,14 @@
 #include "platform/alloc_counter.h"
 
-#include <atomic>
 #include <cstddef>
 #include <cstdlib>
 #include <new>
 
 namespace {
 thread_local std::uint64_t t_count = 0;
-std::atomic<std::uint64_t> g_count{0};
 
 void* counted_alloc(std::size_t size, std::size_t align) {
   ++t_count;
-  g_count.fetch_add(1, std::memory_order_relaxed);
   if (size == 0) size = 1;
   void* p = nullptr;
   if (align <= alignof(std::max_align_t)) {
@@ -30,7 +27,6 @@ void* counted_alloc_or_throw(std::size_t size, std::size_t align) {
 
 namespace st::platform {
 std::uint64_t thread_allocation_count() { return t_count; }
-std::uint64_t process_allocation_count() { return g_count.load(std::memory_order_relaxed); }
 bool allocation_counting_enabled() { return true; }
 }  // namespace st::platform
 

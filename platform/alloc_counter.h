@@ -12,8 +12,6 @@ namespace st::platform {
 
 // Calls of operator new (any form) made by the calling thread so far.
 std::uint64_t thread_allocation_count();
-// Calls of operator new made by all threads so far.
-std::uint64_t process_allocation_count();
 // True when the counting operator new is linked into this executable.
 bool allocation_counting_enabled();
 

@@ -9,11 +9,9 @@ scenario=${1:-orbit}
 frames=${2:-300}
 out=out/demo-$scenario
 
-bash tools/setup-deps.sh
-opts=()
-if command -v ccache >/dev/null; then opts+=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
-cmake -S . -B build "${opts[@]}" >/dev/null
-cmake --build build -j"$(nproc)"
+# The same build as tools/test.sh's (tools/build.sh): the test command
+# after this one does not build again.
+bash tools/build.sh >/dev/null
 
 rm -rf "$out"
 echo "== simulate: $scenario, $frames frames -> $out/sequence"

@@ -12,6 +12,10 @@
 #   BA_LAG=N           scopetrack --ba-lag N (default 3: deterministic replays;
 #                      0: live bundle adjustment, as the tracker runs on a camera)
 #   SCENARIOS="..."    a subset of: orbit fast outofview manipulation invivo
+#   EXTRA="..."        more arguments for every scopetrack --sequence call,
+#                      split at spaces, e.g. EXTRA='--set use_ba=0' (an
+#                      ablation) or EXTRA='--config my-settings.yaml'
+#                      (scopetrack --print-config lists the settings)
 #
 # Each scenario renders at the simulator's default size (1280x720; invivo
 # 960x540). fps is the tracker's own figure from summary.json: it depends on
@@ -24,13 +28,14 @@ frames=${FRAMES:-300}
 out=${OUT:-$root/out/results}
 ba_lag=${BA_LAG:-3}
 scenarios=${SCENARIOS:-orbit fast outofview manipulation invivo}
+read -r -a extra_args <<<"${EXTRA:-}"
 
 seeds=()
 quick=0
 for arg in "$@"; do
   case "$arg" in
     --quick) quick=1 ;;
-    -h|--help) sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     ''|*[!0-9]*) echo "results.sh: unknown argument '$arg' (a seed is a whole number)" >&2; exit 2 ;;
     *) seeds+=("$arg") ;;
   esac
@@ -69,7 +74,9 @@ fmt() {
 mkdir -p "$out"
 lag_text="--ba-lag $ba_lag"
 (( ba_lag > 0 )) || lag_text="live BA (no --ba-lag)"
-echo "Scenarios, $frames frames, $lag_text, binaries from $bin"
+extra_text=""
+if (( ${#extra_args[@]} )); then extra_text=", ${extra_args[*]}"; fi
+echo "Scenarios, $frames frames, $lag_text$extra_text, binaries from $bin"
 echo
 echo "| scenario | seed | lost % | wrong % | TRE median / p95 px | fps |"
 echo "|---|---|---|---|---|---|"
@@ -83,7 +90,7 @@ for scenario in $scenarios; do
     mkdir -p "$dir"
     if ! "$bin/scopetrack-sim" --scenario "$scenario" --seed "$seed" --frames "$frames" \
            --out "$seq" >"$log" 2>&1 ||
-       ! "$bin/scopetrack" --sequence "$seq" --out "$run" "${lag_args[@]}" >>"$log" 2>&1 ||
+       ! "$bin/scopetrack" --sequence "$seq" --out "$run" "${lag_args[@]}" "${extra_args[@]}" >>"$log" 2>&1 ||
        ! json=$("$bin/scopetrack-eval" "$seq" "$run" --json 2>>"$log"); then
       echo "results.sh: $scenario seed $seed failed; its log ($log):" >&2
       tail -n 20 "$log" >&2

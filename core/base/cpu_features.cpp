@@ -11,4 +11,13 @@ bool cpu_has_avx512f() {
 #endif
 }
 
+bool cpu_has_popcnt() {
+#if ST_HAVE_POPCNT
+  static const bool available = __builtin_cpu_supports("popcnt");
+  return available;
+#else
+  return false;
+#endif
+}
+
 }  // namespace st

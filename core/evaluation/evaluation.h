@@ -1,5 +1,5 @@
 // Trajectory evaluation against ground truth: the figures scopetrack-eval
-// reports (issue 4) and the tracker's acceptance criteria are computed here,
+// reports and the tracker's acceptance criteria are computed here,
 // as pure functions over poses, markers and the camera model.
 //
 // Definitions (applied to every frame index 0..frames-1):

@@ -56,7 +56,7 @@ struct OrbConfig {
   // Spreading cells are sized to hold about this many of the level's target
   // over the allowed area. 1 = ORB-SLAM-like evenness (one per cell first),
   // larger = stronger corners win. Measured on warps of the real frame
-  // (README): 1 -> repeatability 0.52, 8 -> 0.63, 400 -> 0.75 (cv::ORB 0.78);
+  // (scopetrack-bench features): 1 -> repeatability 0.52, 8 -> 0.63, 400 -> 0.75 (cv::ORB 0.78);
   // the default keeps repeatability; the relaxed-threshold cells still give
   // weak areas some corners.
   int spread_cell_keypoints = 400;

@@ -36,8 +36,7 @@ int hamming256_portable(const std::uint8_t* a, const std::uint8_t* b) {
   return d;
 }
 
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#define ST_POPCNT_DISPATCH 1
+#if ST_HAVE_POPCNT
 namespace {
 inline std::uint64_t word(const std::uint8_t* p, int i) {
   std::uint64_t w;
@@ -48,7 +47,7 @@ inline std::uint64_t word(const std::uint8_t* p, int i) {
 // Bits differing between the words q0..q3 and descriptor t: one POPCNT a
 // word (compiled for POPCNT whatever the board's flags; only reached where
 // the CPU has it).
-__attribute__((target("popcnt"))) inline int popcnt256(std::uint64_t q0, std::uint64_t q1, std::uint64_t q2,
+ST_POPCNT inline int popcnt256(std::uint64_t q0, std::uint64_t q1, std::uint64_t q2,
                                                        std::uint64_t q3, const std::uint8_t* t) {
   return __builtin_popcountll(q0 ^ word(t, 0)) + __builtin_popcountll(q1 ^ word(t, 1)) +
          __builtin_popcountll(q2 ^ word(t, 2)) + __builtin_popcountll(q3 ^ word(t, 3));
@@ -57,7 +56,7 @@ __attribute__((target("popcnt"))) inline int popcnt256(std::uint64_t q0, std::ui
 // The query's words and the best two stay in registers over the scan of
 // train's descriptors idx[0..n) (0..n when idx is null).
 template <typename BestTwo>
-__attribute__((target("popcnt"))) void scan_popcnt(const std::uint8_t* q, const FeatureSet& train,
+ST_POPCNT void scan_popcnt(const std::uint8_t* q, const FeatureSet& train,
                                                     const std::int32_t* idx, int n, BestTwo* out) {
   const std::uint64_t q0 = word(q, 0), q1 = word(q, 1), q2 = word(q, 2), q3 = word(q, 3);
   BestTwo b = *out;
@@ -71,21 +70,16 @@ __attribute__((target("popcnt"))) void scan_popcnt(const std::uint8_t* q, const 
 }
 }  // namespace
 
-bool popcnt_available() {
-  static const bool has = __builtin_cpu_supports("popcnt");
-  return has;
-}
 int hamming256_popcnt(const std::uint8_t* a, const std::uint8_t* b) {
   return popcnt256(word(a, 0), word(a, 1), word(a, 2), word(a, 3), b);
 }
 #else
-bool popcnt_available() { return false; }
 int hamming256_popcnt(const std::uint8_t* a, const std::uint8_t* b) { return hamming256(a, b); }
 #endif
 
 void OrbMatcher::scan(const std::uint8_t* q, const FeatureSet& train, const std::int32_t* idx, int n, bool popcnt,
                       BestTwo* b) {
-#ifdef ST_POPCNT_DISPATCH
+#if ST_HAVE_POPCNT
   if (popcnt) {
     scan_popcnt(q, train, idx, n, b);
     return;
@@ -189,7 +183,7 @@ int OrbMatcher::search_by_projection(const ProjectedPoint* points, int n, const 
   n = std::clamp(n, 0, kMaxMapPoints);
   if (!distance) distance = dist_scratch_.data();
   std::fill(claimed_by_.begin(), claimed_by_.begin() + std::clamp(frame.count, 0, kMaxKeypoints), -1);
-  const bool popcnt = config_.use_popcnt && popcnt_available();
+  const bool popcnt = config_.use_popcnt && cpu_has_popcnt();
   for (int i = 0; i < n; ++i) {
     const ProjectedPoint& p = points[i];
     match[i] = -1;
@@ -214,7 +208,7 @@ int OrbMatcher::match_brute_force(const FeatureSet& query, const FeatureSet& tra
   const int nq = std::clamp(query.count, 0, kMaxKeypoints), nt = std::clamp(train.count, 0, kMaxKeypoints);
   if (!distance) distance = dist_scratch_.data();
   std::fill(claimed_by_.begin(), claimed_by_.begin() + nt, -1);
-  const bool popcnt = config_.use_popcnt && popcnt_available();
+  const bool popcnt = config_.use_popcnt && cpu_has_popcnt();
   for (int i = 0; i < nq; ++i) {
     match[i] = -1;
     distance[i] = 256;

@@ -14,6 +14,7 @@
 #include <span>
 #include <vector>
 
+#include "core/base/cpu_features.h"
 #include "core/features/feature_grid.h"
 #include "core/features/feature_set.h"
 #include "core/base/result.h"
@@ -24,12 +25,11 @@ namespace st {
 // else hamming256_portable (word popcounts), which tests compare against.
 int hamming256(const std::uint8_t* a, const std::uint8_t* b);
 int hamming256_portable(const std::uint8_t* a, const std::uint8_t* b);
-// True on an x86-64 CPU with the POPCNT instruction (detected at run time:
-// the generic board's baseline ISA lacks it, nearly every CPU has it).
-// Matching then counts bits with it: the same distances, about 2x faster
-// than the SSE2 count (brute force). False elsewhere.
-bool popcnt_available();
-// hamming256 by four POPCNTs. Call only where popcnt_available().
+// On an x86-64 CPU with the POPCNT instruction (cpu_has_popcnt(), detected
+// at run time: the generic board's baseline ISA lacks it, nearly every CPU
+// has it) matching counts bits with it: the same distances, about 2x faster
+// than the SSE2 count (brute force).
+// hamming256 by four POPCNTs. Call only where cpu_has_popcnt().
 int hamming256_popcnt(const std::uint8_t* a, const std::uint8_t* b);
 
 struct MatchConfig {

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "core/base/capacity.h"
+#include "core/formats/json_text.h"
 #include "core/formats/text_scan.h"
 
 namespace st {
@@ -122,18 +123,7 @@ std::string format_frames_csv_row(const FrameRecord& r) {
 }
 
 namespace {
-std::string json_string(std::string_view s) {
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') out += '\\';
-    if (static_cast<unsigned char>(c) < 0x20) {
-      out += ' ';
-      continue;
-    }
-    out += c;
-  }
-  return out + '"';
-}
+std::string json_string(std::string_view s) { return '"' + json_escaped(s) + '"'; }
 std::string json_number(double v) { return std::isfinite(v) ? format_number(v) : "null"; }
 }  // namespace
 

@@ -3,7 +3,7 @@
 // instrument: it lies inside the organ's outline. On smooth tissue its
 // strong edges give many keypoints, keyframes turn them into map points
 // with the mesh's depth behind them, and the pose follows the instrument
-// (README, "Photo-textured manipulation: the instrument").
+// (docs/design-notes.md, "The occluder mask").
 //
 // Physics: instruments are steel or black/grey plastic, so their colour is
 // near-neutral; tissue (liver red-brown, fat yellow, muscle red) is
@@ -22,7 +22,7 @@
 //    noise (mean >= min_luma; this also keeps the black field-stop border
 //    out) and holds no saturated highlight (max_luma; white whatever the
 //    surface, and core/image/valid_mask removes highlights already).
-// Calibrated on the real frame of shared/data (README): liver and fat have
+// Calibrated on the real frame of shared/data (docs/design-notes.md): liver and fat have
 // ratios of 0.21-0.34 at their 1st percentile, 0.39-0.51 median, so 0.12
 // leaves them unflagged with a factor ~2 to spare, while a grey surface
 // tinted by the tissue around it (ratio ~0.06-0.1) stays below. The

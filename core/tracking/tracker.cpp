@@ -13,7 +13,7 @@ namespace st {
 
 namespace {
 
-Status check_config(const TrackerConfig& c, const CameraModel& camera) {
+Status check_frame(const TrackerConfig& c, const CameraModel& camera) {
   const auto err = [](const std::string& m) { return Status(make_error("tracker config: " + m)); };
   if (c.width <= 0 || c.height <= 0 || c.width > kMaxImageWidth || c.height > kMaxImageHeight)
     return err("frame size " + std::to_string(c.width) + "x" + std::to_string(c.height) +
@@ -24,21 +24,27 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
   if (camera.pinhole().width != c.width || camera.pinhole().height != c.height)
     return err("calibration size " + std::to_string(camera.pinhole().width) + "x" +
                std::to_string(camera.pinhole().height) + " differs from the frame size");
-  if (c.n_features < 50 || c.n_features > kMaxKeypoints)
-    return err("n_features " + std::to_string(c.n_features) + " outside [50, " +
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status validate_tracker_settings(const TrackerConfig& c) {
+  const auto err = [](const std::string& m) { return Status(make_error("tracker config: " + m)); };
+  if (c.features.n_features < 50 || c.features.n_features > kMaxKeypoints)
+    return err("features.n_features " + std::to_string(c.features.n_features) + " outside [50, " +
                std::to_string(kMaxKeypoints) + "]");
   if (c.max_keyframes < 2 || c.max_keyframes > kMaxKeyframes)
     return err("max_keyframes " + std::to_string(c.max_keyframes) + " outside [2, " +
                std::to_string(kMaxKeyframes) + "]");
-  if (c.max_map_points < c.n_features || c.max_map_points > kMaxMapPoints)
-    return err("max_map_points " + std::to_string(c.max_map_points) + " outside [n_features, " +
+  if (c.max_map_points < c.features.n_features || c.max_map_points > kMaxMapPoints)
+    return err("max_map_points " + std::to_string(c.max_map_points) + " outside [features.n_features, " +
                std::to_string(kMaxMapPoints) + "]");
   if (c.raster_downscale != 1 && c.raster_downscale != 2 && c.raster_downscale != 4)
     return err("raster_downscale must be 1, 2 or 4");
   if (c.max_raster_triangles != 0 && (c.max_raster_triangles < 1000 || c.max_raster_triangles > kMaxMeshTriangles))
     return err("max_raster_triangles " + std::to_string(c.max_raster_triangles) + " outside [1000, " +
                std::to_string(kMaxMeshTriangles) + "] (0: never simplify)");
-  if (c.mask_margin_px < -256 || c.mask_margin_px > 256) return err("mask_margin_px outside [-256, 256]");
   if (c.min_inliers < 6) return err("min_inliers must be >= 6 (a pose has 6 degrees of freedom)");
   if (!(c.min_inlier_ratio >= 0 && c.min_inlier_ratio <= 1) || !(c.min_mask_agreement >= 0 && c.min_mask_agreement <= 1))
     return err("min_inlier_ratio and min_mask_agreement must be in [0, 1]");
@@ -57,20 +63,20 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
     return err("max_rms_px, max_jump_deg and max_jump_mm must be positive");
   if (!(c.search_radius_px > 0.f) || !(c.wide_radius_px >= c.search_radius_px) || !(c.refine_radius_px > 0.f))
     return err("search radii must be positive and wide_radius_px >= search_radius_px");
-  if (c.max_hamming < 1 || c.max_hamming > 256) return err("max_hamming outside [1, 256]");
-  if (!(c.w_shape >= 0) || !std::isfinite(c.w_shape) || c.ba_window_keyframes < 2 ||
-      c.ba_window_keyframes > kMaxKeyframes || c.ba_max_iterations < 1 || c.ba_global_max_iterations < 1 ||
-      !(c.ba_max_time_s > 0) || !(c.ba_global_max_time_s > 0) || c.ba_max_observations < 1)
-    return err("bundle adjustment settings out of range (w_shape >= 0, window in [2, kMaxKeyframes], limits > 0)");
+  if (c.matching.max_distance < 1 || c.matching.max_distance > 256)
+    return err("matching.max_distance outside [1, 256]");
+  if (!(c.ba.w_shape >= 0) || !std::isfinite(c.ba.w_shape) || c.ba_window_keyframes < 2 ||
+      c.ba_window_keyframes > kMaxKeyframes || c.ba.max_iterations < 1 || c.ba_global_max_iterations < 1 ||
+      !(c.ba.max_time_s > 0) || !(c.ba_global_max_time_s > 0) || c.ba_max_observations < 1)
+    return err("bundle adjustment settings out of range (ba.w_shape >= 0, window in [2, kMaxKeyframes], limits > 0)");
   if (!(c.registration_sigma_deg >= 0) || !std::isfinite(c.registration_sigma_deg) ||
       !(c.registration_sigma_mm >= 0) || !std::isfinite(c.registration_sigma_mm) ||
       (c.registration_sigma_deg > 0) != (c.registration_sigma_mm > 0) ||
-      c.ba_registration_keyframes < 0 || !(c.registration_release_f >= 0) ||
-      !std::isfinite(c.registration_release_f))
+      c.ba_registration_keyframes < 0 || !(c.ba.prior_release_f >= 0) ||
+      !std::isfinite(c.ba.prior_release_f))
     return err(
         "registration prior out of range (both sigmas 0, or both finite and > 0; keyframes >= 0; "
         "release F >= 0)");
-  if (c.local_map_per_cell < 0 || c.local_map_per_cell > 8) return err("local_map_per_cell outside [0, 8]");
   if (!(c.keyframe_max_motion_px > 0.f)) return err("keyframe_max_motion_px must be positive");
   if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
       c.min_spread_cells < 0 || c.min_spread_cells > 16 || !(c.dead_reckoning_decay > 0.0) ||
@@ -82,11 +88,10 @@ Status check_config(const TrackerConfig& c, const CameraModel& camera) {
   return Status::Ok();
 }
 
-}  // namespace
-
 Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
                               const SE3& T_camera_model_init) {
-  if (Status s = check_config(config, camera); !s.ok()) return s;
+  if (Status s = check_frame(config, camera); !s.ok()) return s;
+  if (Status s = validate_tracker_settings(config); !s.ok()) return s;
   if (mesh.triangle_count() <= 0) return make_error("tracker: the mesh has no triangles");
   if (!T_camera_model_init.all_finite()) return make_error("tracker: T_camera_model_init is not finite");
   config_ = config;
@@ -118,16 +123,9 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
     const GrayView vm = valid_mask_.mask();
     valid_without_occluders_.assign(static_cast<std::size_t>(vm.width) * static_cast<std::size_t>(vm.height), 0);
   }
-  OrbConfig oc;
-  oc.n_features = config.n_features;
-  oc.levels = config.levels;
-  oc.scale_factor = config.scale_factor;
-  oc.organ_margin_px = config.mask_margin_px;
-  oc.organ_patch_inside = config.mask_patch_inside;
-  if (Status s = orb_.configure(oc, config.width, config.height); !s.ok()) return make_error("tracker: ORB: " + s.message());
-  MatchConfig mc;
-  mc.max_distance = config.max_hamming;
-  if (Status s = matcher_.configure(mc); !s.ok()) return make_error("tracker: matcher: " + s.message());
+  if (Status s = orb_.configure(config.features, config.width, config.height); !s.ok())
+    return make_error("tracker: ORB: " + s.message());
+  if (Status s = matcher_.configure(config.matching); !s.ok()) return make_error("tracker: matcher: " + s.message());
   if (Status s = grid_.configure(config.width, config.height); !s.ok()) return make_error("tracker: grid: " + s.message());
   if (Status s = motion_.configure(config.width, config.height); !s.ok()) return make_error("tracker: " + s.message());
   {
@@ -175,8 +173,8 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   octave_info_.assign(static_cast<std::size_t>(kMaxPyramidLevels), 1.0);
   octave_scale_.assign(static_cast<std::size_t>(kMaxPyramidLevels), 1.f);
   for (int o = 0; o < kMaxPyramidLevels; ++o) {
-    octave_info_[static_cast<std::size_t>(o)] = octave_information(o, static_cast<double>(config.scale_factor));
-    octave_scale_[static_cast<std::size_t>(o)] = std::pow(config.scale_factor, static_cast<float>(o));
+    octave_info_[static_cast<std::size_t>(o)] = octave_information(o, static_cast<double>(config.features.scale_factor));
+    octave_scale_[static_cast<std::size_t>(o)] = std::pow(config.features.scale_factor, static_cast<float>(o));
   }
   started_ = false;
   return Status::Ok();

@@ -14,7 +14,10 @@
 #include <array>
 #include <cstdint>
 
+#include "core/features/orb_extractor.h"
+#include "core/features/orb_matcher.h"
 #include "core/geometry/camera.h"
+#include "core/mapping/ba_options.h"
 #include "core/image/image.h"
 #include "core/mesh/mesh.h"
 #include "core/base/result.h"
@@ -35,12 +38,29 @@ enum class Stage : int { kPyramid, kOccluder, kRaster, kDetect, kDescribe, kMatc
 const char* to_string(Stage s);
 using StageTimes = std::array<double, static_cast<int>(Stage::kCount)>;
 
+// Every tunable of the tracker, one name per concept: the stages' own
+// configs are held here, not copied field by field. The settings file
+// (core/tracking/tracker_settings.h) names each key, its range and meaning.
 struct TrackerConfig {
   int width = 0, height = 0;       // frame size = calibration size
-  // Features (see core/features/orb_extractor.h for their meaning).
-  int n_features = 1500;
-  int levels = 8;
-  float scale_factor = 1.2f;
+  // The ORB frontend (core/features/orb_extractor.h). The tracker's defaults
+  // differ from the extractor's own in two places:
+  // - organ_margin_px -4: the organ mask is eroded a little, since the prior
+  //   and the predicted pose are never exact;
+  // - organ_patch_inside: a keypoint is kept only if its descriptor patch
+  //   (radius 16 px, times 1.2 per octave) lies on the organ. The organ's
+  //   outline is an occluding contour: it slides over the surface as the
+  //   view changes, and a patch that reaches across it describes the
+  //   contour, not the tissue, so its map point pulls the pose towards
+  //   where the contour was. On smooth tissue such keypoints are a large
+  //   share and the map drifts until tracking is lost
+  //   (docs/design-notes.md, "The organ's outline").
+  OrbConfig features = [] {
+    OrbConfig c;
+    c.organ_margin_px = -4;
+    c.organ_patch_inside = true;
+    return c;
+  }();
   // Pseudo-segmentation.
   bool use_mask = true;            // false: --no-mask ablation (whole valid image)
   int raster_downscale = 2;        // mask/depth raster at 1/2 resolution
@@ -51,17 +71,6 @@ struct TrackerConfig {
   // shape residual in BA and the texturing keep the mesh as given. 0: never
   // simplify.
   int max_raster_triangles = 40000;
-  // Organ mask margin, full-resolution pixels: > 0 dilates, < 0 erodes.
-  // A little inside: the prior and the predicted pose are never exact.
-  int mask_margin_px = -4;
-  // Keep only keypoints whose descriptor patch (radius 16 px, times 1.2 per
-  // octave) lies on the organ (OrbConfig::organ_patch_inside). The organ's
-  // outline is an occluding contour: it slides over the surface as the
-  // view changes, and a patch that reaches across it describes the contour,
-  // not the tissue, so its map point pulls the pose towards where the
-  // contour was. On smooth tissue such keypoints are a large share and the
-  // map drifts until tracking is lost (README, "the organ's outline").
-  bool mask_patch_inside = true;
   // Dim video: FAST thresholds are intensity differences, and every
   // difference shrinks with the light (gamma-encoded luma above black scales
   // with it). A frame whose median luma over the organ (the valid image
@@ -78,7 +87,7 @@ struct TrackerConfig {
   // luma units) is below this has its FAST thresholds scaled by contrast /
   // fast_reference_contrast, as a dim frame is (the smaller scale wins).
   // Measured: the real liver frame 6.6 (at 1280x720), the simulator's
-  // procedural tissue 7-9, its real-photo tissue 3.4-4.4 (smoother than the
+  // procedural texture 7-9, its real-photo texture 3.4-4.4 (smoother than the
   // real frame: the photo is magnified onto the organ), under its smoke
   // 1.9-3.4. 0: off.
   double fast_reference_contrast = 5.0;
@@ -121,12 +130,13 @@ struct TrackerConfig {
   double confirm_agreement_px = 3.0;
   double anchor_min_inlier_ratio = 0.4;
   double confirmed_keyframe_min_anchored = 0.5;
+  // Descriptor matching (core/features/orb_matcher.h): max_distance (of 256
+  // bits), the ratio test, the orientation check.
+  MatchConfig matching;
   // Search by projection (full-resolution pixels, scaled by the predicted octave's scale).
   float search_radius_px = 15.f;   // around the constant-velocity prediction
   float wide_radius_px = 45.f;     // second pass when the first gives too few matches
   float refine_radius_px = 5.f;    // local-map search again at the first solved pose
-  int local_map_per_cell = 0;      // local-map cap per cell of a 48x27 image grid, most recently found first (0: no cap, <= 8; capped runs lose fast-s2, so off)
-  int max_hamming = 100;           // descriptor distance limit of a match (of 256 bits)
   // Implausible motion: a pose this far from the prediction is lost (generous on purpose).
   double max_jump_deg = 25.0;
   double max_jump_mm = 40.0;       // camera centre displacement
@@ -148,11 +158,17 @@ struct TrackerConfig {
   int min_spread_cells = 3;             // strict: inliers must occupy this many cells of a 4x4 grid
   // Bundle adjustment (core/mapping/bundle_adjustment.h), run by the mapping side
   // given to Tracker::set_ba_channel(); without one there is no BA.
-  bool use_ba = true;                   // false: --no-ba ablation (no jobs handed out)
-  double w_shape = 100.0;               // shape residual weight (paper: 100); 0: --no-shape-ba
+  bool use_ba = true;                   // false: no BA (ablation: no jobs handed out)
+  // The window solver (core/mapping/ba_options.h): ba.w_shape is the shape
+  // residual's weight (paper: 100; 0: reprojection only), ba.max_iterations
+  // and ba.max_time_s bound a window solve, ba.prior_release_f is the F test
+  // that frees frame 0 under the registration prior (below).
+  BundleAdjusterOptions ba = [] {
+    BundleAdjusterOptions o;
+    o.max_time_s = 0.03;
+    return o;
+  }();
   int ba_window_keyframes = 8;          // newest keyframes optimised by a window BA (<= max_keyframes used)
-  int ba_max_iterations = 10;           // window BA
-  double ba_max_time_s = 0.03;
   bool ba_global_after_reloc = true;    // a global BA over all keyframes after a relocalisation
   // Refining the first frame's registration. T_camera_model_init is a coarse
   // registration (sequence-format.md). While frame 0's keyframe lives, every
@@ -162,16 +178,16 @@ struct TrackerConfig {
   // keyframe held: the mesh and the prior fix the frame, and the whole
   // map, first pose included, moves to agree with the mesh and the
   // observations); the freed solution is kept only if its cost is lower by
-  // F > registration_release_f (BundleAdjusterOptions::prior_release_f). A
+  // F > ba.prior_release_f (BundleAdjusterOptions). A
   // global BA every ba_registration_keyframes keyframes lets the older
   // keyframes follow. Sigmas 0 (the default): the registration is taken as
   // exact. Off by default because the test cannot tell a misplaced prior
   // from a mis-shaped one: on a kidney whose prior is 1 mm off in shape,
   // seen from close up, it moved a right registration by 2 deg / 6 mm and
-  // TRE went from 3.1 to 8.1 px (README, "Refining a coarse registration").
+  // TRE went from 3.1 to 8.1 px (docs/design-notes.md, "Refining a coarse
+  // registration").
   double registration_sigma_deg = 0.0;
   double registration_sigma_mm = 0.0;
-  double registration_release_f = 6.3;
   int ba_registration_keyframes = 4;  // 0: no periodic global BA
   int ba_global_max_iterations = 15;
   double ba_global_max_time_s = 0.2;
@@ -199,8 +215,8 @@ struct TrackerConfig {
   // calibration), so the test cannot tell which of the two is wrong, only
   // that the video and the prior disagree in a way that costs degrees.
   // Both tests must hold: F alone flags small biases, |s - 1| alone the
-  // scatter of a weak window (s = 1.13 at F = 8). README, "A wrong
-  // calibration".
+  // scatter of a weak window (s = 1.13 at F = 8). docs/design-notes.md, "The
+  // focal-length test".
   bool check_calibration = true;
   int calibration_test_jobs = 6;  // window jobs tested (the first ones; each costs two more solves)
   double calibration_min_f = 100.0;
@@ -209,6 +225,11 @@ struct TrackerConfig {
   // Clock for stage timings (monotonic ns); nullptr: no timings.
   std::int64_t (*now_ns)() = nullptr;
 };
+
+// The checks of configure() that concern the settings alone (not the frame
+// size, the camera or the mesh), across fields too: what a settings file
+// or --set can get wrong. The message names the setting.
+Status validate_tracker_settings(const TrackerConfig& config);
 
 struct TrackResult {
   TrackState state = TrackState::kLost;

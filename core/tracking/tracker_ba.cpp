@@ -121,7 +121,7 @@ void TrackerImpl::fill_job(BaJob* job, bool global) {
   job->kind = global ? BaKind::kGlobal : BaKind::kWindow;
   job->version = ++ba_version_;
   // The first window jobs also test the calibration's focal length.
-  if (!global && config_.check_calibration && config_.w_shape > 0 &&
+  if (!global && config_.check_calibration && config_.ba.w_shape > 0 &&
       calibration_jobs_ < config_.calibration_test_jobs) {
     job->test_focal = true;
     ++calibration_jobs_;

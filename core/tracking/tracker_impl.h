@@ -65,7 +65,6 @@ class TrackerImpl {
   // Stages (tracker_track.cpp).
   bool extract(GrayView luma, bool with_organ_mask, TrackResult* r);
   int select_local_map(const SE3& T_camera_model, bool check_occlusion);
-  int local_map_slot(const Vec2& ideal, int score, int* n);
   void reproject_local_map(const SE3& T_camera_model);
   bool weak_first_pass(bool solved, const PoseEstimate& e) const;
   double image_shift_px(const SE3& a, const SE3& b) const;
@@ -195,13 +194,6 @@ class TrackerImpl {
   bool reloc_seed_ok_ = false;  // the relocalised frame's pose may seed a keyframe
   std::array<std::int32_t, kMaxKeyframes> reloc_order_{};  // keyframes by distance to the last pose
   int reloc_order_count_ = 0;
-  // Local-map cap: the image in kCapCellsX x kCapCellsY cells, each keeping
-  // at most TrackerConfig::local_map_per_cell points (the most recently
-  // found ones): a bounded, evenly spread search set.
-  static constexpr int kCapCellsX = 48, kCapCellsY = 27, kMaxPerCell = 8;
-  std::array<std::int32_t, kCapCellsX * kCapCellsY> cap_count_{};
-  bool uncapped_ = false;  // select_local_map ignores the cap (weak-frame retry)
-  std::array<std::int32_t, kCapCellsX * kCapCellsY * kMaxPerCell> cap_slot_{}, cap_score_{};
 };
 
 }  // namespace st

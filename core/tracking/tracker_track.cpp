@@ -131,10 +131,9 @@ double TrackerImpl::organ_contrast(GrayView luma, GrayView organ) const {
 int TrackerImpl::select_local_map(const SE3& T_camera_model, bool check_occlusion) {
   searched_valid_ = false;  // a new selection: no earlier search covers it
   const Vec3 centre = camera_centre(T_camera_model);
-  const double log_scale = std::log(static_cast<double>(config_.scale_factor));
+  const double log_scale = std::log(static_cast<double>(config_.features.scale_factor));
   const int capacity = static_cast<int>(projected_.size());
   const ImageView<const float> depth = raster_.depth();
-  std::fill(cap_count_.begin(), cap_count_.end(), 0);
   int n = 0;
   struct Pending {
     int id;
@@ -149,13 +148,12 @@ int TrackerImpl::select_local_map(const SE3& T_camera_model, bool check_occlusio
     if (n >= capacity) return;  // full: where the unqueued loop stopped
     if (c.raster_depth && !visible_at_depth(c.z_mm, *c.raster_depth)) return;
     const MapPoint& p = map_.point(c.id);
-    const int slot = local_map_slot(c.ideal, p.last_seen_frame, &n);
-    if (slot < 0) return;
+    const int slot = n++;
     const Vec2 px = distorted_ ? camera_.distort_pixel(c.ideal) : c.ideal;
     const double ref = static_cast<double>(p.ref_distance_mm);
     const int octave =
         std::clamp(p.ref_octave + static_cast<int>(std::lround(std::log(ref / c.dist) / log_scale)),
-                   0, config_.levels - 1);
+                   0, config_.features.levels - 1);
     ProjectedPoint& q = projected_[static_cast<std::size_t>(slot)];
     q.x = static_cast<float>(px.x());
     q.y = static_cast<float>(px.y());
@@ -195,30 +193,6 @@ int TrackerImpl::select_local_map(const SE3& T_camera_model, bool check_occlusio
     admit(queue[static_cast<std::size_t>(head)]);
   local_count_ = n;
   return n;
-}
-
-// The local-map slot for a point projecting at ideal: a new one (n grows)
-// while its cell has room, else the cell's slot with the oldest score if
-// this point's is newer, else -1 (not searched). Uncapped: always new.
-int TrackerImpl::local_map_slot(const Vec2& ideal, int score, int* n) {
-  const int per_cell = uncapped_ ? 0 : config_.local_map_per_cell;
-  if (per_cell <= 0) return (*n)++;
-  const int cx = std::clamp(static_cast<int>(ideal.x() * kCapCellsX / K_.width), 0, kCapCellsX - 1);
-  const int cy = std::clamp(static_cast<int>(ideal.y() * kCapCellsY / K_.height), 0, kCapCellsY - 1);
-  const auto cell = static_cast<std::size_t>(cy * kCapCellsX + cx);
-  const std::size_t base = cell * kMaxPerCell;
-  std::int32_t& count = cap_count_[cell];
-  if (count < per_cell) {
-    cap_slot_[base + static_cast<std::size_t>(count)] = *n;
-    cap_score_[base + static_cast<std::size_t>(count++)] = score;
-    return (*n)++;
-  }
-  std::size_t oldest = base;
-  for (std::size_t j = base + 1; j < base + static_cast<std::size_t>(per_cell); ++j)
-    if (cap_score_[j] < cap_score_[oldest]) oldest = j;
-  if (score <= cap_score_[oldest]) return -1;
-  cap_score_[oldest] = score;
-  return cap_slot_[oldest];
 }
 
 // Search by projection with radius_px (scaled by the predicted octave) into
@@ -450,11 +424,6 @@ bool TrackerImpl::track_from(const SE3& T_predicted, float first_radius_px, Pose
   bool solved = solve_pose(&T, e);
   lap(Stage::kPose, &t, r);
   if (weak_first_pass(solved, *e) && config_.wide_radius_px > radius) {
-    if (config_.local_map_per_cell > 0) {  // a hard frame: search the whole local map
-      uncapped_ = true;
-      r->local_map = select_local_map(T_predicted, true);
-      uncapped_ = false;
-    }
     match_local_map(config_.wide_radius_px);
     lap(Stage::kMatch, &t, r);
     SE3 T_wide = T_predicted;

@@ -6,6 +6,8 @@
 
 #include <cstdlib>
 
+#include "platform/clock.h"
+
 #if __has_include(<libcamera/libcamera.h>)
 #define ST_HAVE_LIBCAMERA 1
 #include <sys/mman.h>
@@ -389,5 +391,27 @@ void LibcameraCapture::stop() {}
 CaptureCounters LibcameraCapture::counters() const { return {}; }
 
 #endif
+
+// Both builds: the frame source over next_frame().
+void LibcameraCapture::next(SourceFrame* out) {
+  LiveFrame in;
+  next_frame(&in);
+  out->kind = in.kind == LiveFrame::Kind::kFrame  ? SourceFrame::Kind::kFrame
+              : in.kind == LiveFrame::Kind::kEnd ? SourceFrame::Kind::kEnd
+                                                 : SourceFrame::Kind::kError;
+  out->frame = in.frame;
+  if (in.kind == LiveFrame::Kind::kError) error_status_ = in.pixel_status;
+  if (in.kind != LiveFrame::Kind::kFrame) return;
+  const std::int64_t now_ns = platform::monotonic_ns();
+  const std::int64_t age_ns = now_ns - in.t_sensor_ns;
+  out->t_ready_ns = age_ns >= 0 && age_ns < 1'000'000'000 ? in.t_sensor_ns : now_ns;
+  if (t_first_sensor_ns_ < 0) t_first_sensor_ns_ = in.t_sensor_ns;
+  out->timestamp_s = static_cast<double>(in.t_sensor_ns - t_first_sensor_ns_) * 1e-9;
+}
+
+std::string LibcameraCapture::error() const {
+  return error_status_ == PixelStatus::kOk ? std::string("the camera stopped with an error")
+                                           : std::string("camera buffer: ") + describe(error_status_);
+}
 
 }  // namespace st

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "core/base/result.h"
+#include "hal/capture/frame_source.h"
 #include "hal/capture/pixel_format.h"
 #include "hal/capture/y4m_reader.h"
 
@@ -71,10 +72,13 @@ struct CaptureCounters {
   std::uint64_t failed = 0;     // buffers with an error status from the camera
 };
 
-class LibcameraCapture {
+// A camera as a frame source (hal/capture/frame_source.h): next() wraps
+// next_frame() (a frame stays valid until the next call, so release() has
+// nothing to do), timestamps from the sensor's clock, paced by the camera.
+class LibcameraCapture final : public FrameSource {
  public:
   LibcameraCapture();
-  ~LibcameraCapture();
+  ~LibcameraCapture() override;
   LibcameraCapture(const LibcameraCapture&) = delete;
   LibcameraCapture& operator=(const LibcameraCapture&) = delete;
 
@@ -83,19 +87,29 @@ class LibcameraCapture {
   // layout the converter refuses, mmap failures.
   Status open(const CaptureOptions& options);
   CapturePixelFormat pixel_format() const;
-  Status start();
+  Status start() override;
   // Tracking thread: waits for a frame (or kEnd after stop(), or kError
   // after a failed buffer). Allocation-free.
   void next_frame(LiveFrame* out);
   // Owner thread (e.g. on SIGINT): ends the capture; next_frame() then
   // returns kEnd.
-  void stop();
+  void stop() override;
   CaptureCounters counters() const;
+
+  // FrameSource: the frame's time from its sensor timestamp (frame 0 at 0 s);
+  // latency counts from the sensor timestamp when it is plausible (on
+  // CLOCK_MONOTONIC, under a second old), else from the hand-off.
+  void next(SourceFrame* out) override;
+  void release() override {}
+  bool paced() const override { return true; }
+  std::string error() const override;
 
   struct Impl;
 
  private:
   std::unique_ptr<Impl> impl_;
+  std::int64_t t_first_sensor_ns_ = -1;     // tracking thread
+  PixelStatus error_status_ = PixelStatus::kOk;  // the buffer that ended the stream, if any
 };
 
 }  // namespace st

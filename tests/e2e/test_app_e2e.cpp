@@ -64,12 +64,12 @@ EvalReport simulate_track_evaluate(const std::filesystem::path& dir, int frames,
 // at 960x540 recovered: live, the same binary lost 2.0-4.3 % on a quiet or
 // loaded machine (TRE p95 3.5 px, or 8 px in 5 of 12 loaded runs, after a
 // relocalisation that seeded a keyframe 8 px off), and 69 % in one of four
-// ASan runs, as with --no-ba. With the corrections landing 3 frames after
+// ASan runs, as with use_ba=0. With the corrections landing 3 frames after
 // their job, runs are byte-identical whatever the load.
 const std::string kDeterministic = " --ba-lag 3";
 
 // Refining the registration (off by default; see TrackerConfig::registration_sigma_deg).
-const std::string kRefineRegistration = " --registration-sigma-deg 1 --registration-sigma-mm 2";
+const std::string kRefineRegistration = " --set registration_sigma_deg=1 --set registration_sigma_mm=2";
 
 double summary_number(const std::filesystem::path& out, const std::string& key) {
   auto v = json_number(test::read_file_bytes(out / "summary.json"), key);
@@ -125,7 +125,7 @@ void check_run(const EvalResult& e, double max_lost_pct, double max_tre_median_p
 
 }  // namespace
 
-// Issue 6's end-to-end gate: init ok, lost 0, median TRE < 2 px, no wrong pose.
+// The end-to-end gate: init ok, lost 0, median TRE < 2 px, no wrong pose.
 TEST_CASE(
     "app_e2e: simulate 150 frames, track, evaluate: init ok, no frame lost, median TRE < 2 px" *
     doctest::timeout(test::budget_s(300))) {
@@ -148,8 +148,8 @@ TEST_CASE(
 // same surface, 320k triangles). The tracker renders a simplified copy of
 // at most TrackerConfig::max_raster_triangles every frame
 // (core/mesh/mesh_simplify.h); the shape residual keeps the full mesh. Tracking
-// stays as accurate as on the 20k-triangle original (README, "A dense
-// prior").
+// stays as accurate as on the 20k-triangle original (docs/design-notes.md,
+// "A dense prior").
 TEST_CASE("app_e2e: a dense prior (the CT liver at 320k triangles) is simplified for the per-frame render" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_dense_prior");
@@ -163,7 +163,7 @@ TEST_CASE("app_e2e: a dense prior (the CT liver at 320k triangles) is simplified
   CHECK(rendered >= 20000);
   CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);
   // The control renders all 320k triangles: the same poses within noise.
-  const EvalResult control = track_control(dir, " --max-raster-triangles 0", "every triangle rendered");
+  const EvalResult control = track_control(dir, " --set max_raster_triangles=0", "every triangle rendered");
   CHECK(summary_number(dir / "control", "raster_triangles") == 320000);
   CHECK(control.lost_pct == 0.0);
   CHECK(report.result.tre_median_px < control.tre_median_px + 0.5);
@@ -193,11 +193,11 @@ TEST_CASE("app_e2e: other organs (a kidney's orbit, a stomach's manipulation, 64
 // Tissue from a real photo (scopetrack-sim --texture: the real liver
 // frame's structure, its noise smoothed away): a smooth, dark liver with a
 // few vessels and fat. Before keypoints had to keep their descriptor patch
-// on the organ (TrackerConfig::mask_patch_inside; the mask was dilated by
+// on the organ (OrbConfig::organ_patch_inside; the mask was dilated by
 // 12 px) the map drifted on it: 0 % lost but TRE 3.02 / 13.68 px on this
 // sequence; then 0.80 / 1.86 px (--ba-lag 3, so every run is the same).
 // Smooth tissue is a knife edge: any change to the keypoints moves the
-// figures. Session 13's binary: 0.73 / 2.14 px. With the FAST thresholds
+// figures. With the FAST thresholds
 // scaled to the organ's luma (~70 here, TrackerConfig::fast_reference_luma
 // 80): 1.14 / 4.04 px; at a reference of 72 0.59 / 1.71, at 96 0.75 / 1.86.
 // In every one a slow drift of 2-4 px over frames 150-250, which returns
@@ -222,7 +222,7 @@ TEST_CASE("app_e2e: a dim scene (photo tissue, light 0.3, 640x360): FAST thresho
   CHECK(summary_number(dir / "out", "dim_frames") >= 140);
   CHECK(summary_number(dir / "out", "min_fast_threshold_scale") < 0.7);
   const EvalResult control =
-      track_control(dir, " --fast-reference-luma 0 --fast-reference-contrast 0", "FAST thresholds not scaled");
+      track_control(dir, " --set fast_reference_luma=0 --set fast_reference_contrast=0", "FAST thresholds not scaled");
   CHECK(summary_number(dir / "control", "dim_frames") == 0);
   // The control shows the test needs the scaling.
   CHECK((control.lost_pct > 5.0 || control.tre_p95_px > 6.0));
@@ -241,7 +241,7 @@ TEST_CASE("app_e2e: surgical smoke over photo tissue (manipulation seed 2, 640x3
   const auto dir = test::scratch_dir("app_e2e_smoke");
   check_run(photo_run(dir, 300, "640x360", 2, "manipulation", " --smoke 0.8").result, 3.0, 4.0, 10.0);
   CHECK(summary_number(dir / "out", "low_contrast_frames") >= 50);
-  const EvalResult control = track_control(dir, " --fast-reference-contrast 0", "FAST thresholds not scaled by contrast");
+  const EvalResult control = track_control(dir, " --set fast_reference_contrast=0", "FAST thresholds not scaled by contrast");
   CHECK(summary_number(dir / "control", "low_contrast_frames") == 0);
   CHECK(control.wrong_pct == 0.0);
   CHECK(control.lost_pct > 30.0);
@@ -251,7 +251,7 @@ TEST_CASE("app_e2e: surgical smoke over photo tissue (manipulation seed 2, 640x3
 // seed 1, 640x360, deterministic): the instrument lies inside the organ's
 // mask, its outline gives keypoints, keyframes make them map points with
 // the mesh's depth behind them, and the pose follows the instrument
-// (README, "Photo-textured manipulation: the instrument"). The occluder mask
+// (docs/design-notes.md, "The occluder mask"). The occluder mask
 // from chroma (core/image/occluder_mask.h) keeps them out: 0 lost, TRE 0.73 /
 // 2.69 px; without it (the control) 23.7 % lost, 0.79 / 15.6 px.
 TEST_CASE("app_e2e: an instrument over smooth tissue is masked by its colour (photo manipulation, 640x360)" *
@@ -261,7 +261,7 @@ TEST_CASE("app_e2e: an instrument over smooth tissue is masked by its colour (ph
   CHECK(summary_number(dir / "out", "occluder_mask_frames") == 300);
   CHECK(summary_number(dir / "out", "occluder_removed_px_mean") > 1000);
   check_run(with_mask.result, 3.0, 1.5, 6.0);
-  const EvalResult control = track_control(dir, " --no-occluder-mask", "without the occluder mask");
+  const EvalResult control = track_control(dir, " --set use_occluder_mask=0", "without the occluder mask");
   // The control shows the test needs the mask: the pose follows the instrument.
   CHECK((control.lost_pct > 10.0 || control.tre_p95_px > 10.0));
 }
@@ -275,8 +275,8 @@ TEST_CASE("app_e2e: an instrument over smooth tissue is masked by its colour (ph
 // the truth), until the ratio gate calls the frame lost and relocalisation
 // cannot match either: 31.7 % lost (frames 159-255, 0 wrong). With them
 // refreshed: 1.0 % lost, TRE 1.00 / 4.36 px (deterministic runs). Since the
-// FAST thresholds also follow the texture's contrast (session 16,
-// TrackerConfig::fast_reference_contrast), the flat tissue gives more
+// FAST thresholds also follow the texture's contrast
+// (TrackerConfig::fast_reference_contrast), the flat tissue gives more
 // corners and this sequence no longer needs the refresh (0 % lost either
 // way; TRE 1.18 / 3.33 px with it, 0.88 / 3.14 px without): the control
 // turns both off, to keep showing what the refresh does on its own.
@@ -286,7 +286,7 @@ TEST_CASE("app_e2e: map points follow the tissue's appearance (photo manipulatio
   const EvalReport refreshed = photo_manipulation_run(dir, "1280x720", 4);
   CHECK(summary_number(dir / "out", "refresh_descriptors") == 1);
   check_run(refreshed.result, 3.0, 1.5, 6.0);
-  const EvalResult control = track_control(dir, " --no-descriptor-refresh --fast-reference-contrast 0",
+  const EvalResult control = track_control(dir, " --set refresh_descriptors=0 --set fast_reference_contrast=0",
                                            "descriptors never refreshed, FAST not scaled by contrast");
   CHECK(control.wrong_pct == 0.0);
   CHECK(control.lost_pct > 20.0);
@@ -336,7 +336,7 @@ TEST_CASE("app_e2e: a fast swing into unmapped tissue is recovered (fast seed 2,
 // px, at CRF 28 (one encoder thread, so the bits repeat): 0.88 / 1.82 px,
 // 0 lost. (At 640x360 and CRF 33 the texture no longer moves with the
 // organ and the poses lag the truth, TRE 16 / 39 px with 0.7 % lost and
-// hundreds of inliers a frame: a limit the README notes.)
+// hundreds of inliers a frame: a limit docs/design-notes.md notes.)
 TEST_CASE("app_e2e: an H.264-compressed sequence (CRF 28, through ffmpeg) still tracks accurately" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   if (std::string(SCOPETRACK_FFMPEG).empty()) return;  // ffmpeg is optional (Dependencies.cmake)
@@ -361,8 +361,8 @@ TEST_CASE("app_e2e: an H.264-compressed sequence (CRF 28, through ffmpeg) still 
 // A coarse registration (sequence-format.md: T_camera_model_init is "the
 // coarse registration"): the simulator writes the true pose, here turned by
 // 2 deg and shifted by 4 mm. Taken as exact, the whole run carries the error
-// (TRE 17.6 / 43.4 px). With the registration prior (--registration-sigma-deg 1
-// --registration-sigma-mm 2; off by default), BA frees frame 0's pose once the
+// (TRE 17.6 / 43.4 px). With the registration prior (registration_sigma_deg 1,
+// registration_sigma_mm 2; off by default), BA frees frame 0's pose once the
 // data shows the map sits off the organ and the overlay comes back (4.5 /
 // 18.3 px; the first frames, before any parallax, keep the error: no image
 // tells). One frame is lost where a correction moved the map under it.
@@ -515,30 +515,77 @@ TEST_CASE("app_e2e: sequences --check refuses are refused before tracking with a
                           test::shell_quoted(dir / "seq") + " 2> /dev/null") == 2);  // no --out
     CHECK(test::run_shell(test::bin_command("scopetrack") + " --sequence " +
                           test::shell_quoted(dir / "seq") + " --out x --fast 2> /dev/null") == 2);
-    // Each bad value: exit 2, the option's message, no output written.
+    // Each bad value: exit 2, the message, no output written.
     const auto refused = [&](const std::string& option, std::initializer_list<const char*> values,
                              const std::string& message) {
       for (const char* v : values) {
         CAPTURE(option);
         CAPTURE(v);
         std::string err;
-        CHECK(track(dir / "seq", dir / "out_bad", &err, " " + option + " " + v) == 2);
-        CHECK(err.find(option + " takes " + message) != std::string::npos);
+        CHECK(track(dir / "seq", dir / "out_bad", &err, " " + option + v) == 2);
+        CHECK(err.find(message) != std::string::npos);
         CHECK_FALSE(std::filesystem::exists(dir / "out_bad" / "summary.json"));
       }
     };
-    refused("--ba-lag", {"0", "-1", "1001", "3x", "''", "1e2"}, "a whole number of frames in 1..1000");
-    refused("--w-shape", {"-1", "1e7", "nan", "inf", "3x", "''"}, "a weight in 0..1e6");
-    refused("--max-raster-triangles", {"-1", "999", "4000001", "3x", "''", "1e4"},
-            "0 (never simplify) or a triangle count in 1000..4000000");
-    refused("--fast-reference-contrast", {"-1", "256", "nan", "inf", "3x", "''", "1e"}, "a contrast in 0..255");
-    refused("--registration-sigma-deg", {"0", "-1", "91", "nan", "3x", "''"},
-            "an angle in 0.001..90 degrees");
-    refused("--registration-sigma-mm", {"0", "-1", "1001", "inf", "3x", "''"},
-            "a distance in 0.001..1000 mm");
-    refused("--registration-keyframes", {"-1", "1001", "2.5", "''"}, "a keyframe count in 0..1000");
-    std::string err;
-    CHECK(track(dir / "seq", dir / "out_bad", &err, " --registration-sigma-mm 1") == 2);
-    CHECK(err.find("go together") != std::string::npos);
+    refused("--ba-lag ", {"0", "-1", "1001", "3x", "''", "1e2"}, "--ba-lag takes a whole number of frames in 1..1000");
+    refused("--ring ", {"1", "65", "x", "''"}, "--ring takes a slot count in 2..64");
+    refused("--stream-wait ", {"-1", "65", "2.5"}, "--stream-wait takes a console count in 0..64");
+    refused("--set ba.w_shape=", {"-1", "1e7", "nan", "inf", "3x", "''"}, "ba.w_shape: ");
+    refused("--set max_raster_triangles=", {"-1", "4000001", "3x", "''", "1e4"},
+            "max_raster_triangles: ");
+    refused("--set fast_reference_contrast=", {"-1", "256", "nan", "inf", "3x", "1e"},
+            "fast_reference_contrast: ");
+    refused("--set registration_sigma_deg=", {"-1", "91", "nan", "3x"}, "registration_sigma_deg: ");
+    refused("--set ", {"no_such_key=1", "=1", "use_mask"}, "--set ");
+    refused("--set use_mask=", {"2", "yes"}, "use_mask: ");
+    // Checks across keys (the tracker's): refused before the replay too.
+    refused("--set max_raster_triangles=", {"999"}, "max_raster_triangles 999 outside [1000");
+    refused("--set registration_sigma_mm=", {"1"}, "registration prior");
   }
 }
+
+// The settings file: the printed defaults, read back, track exactly as no
+// file does; a misspelt key or a value out of range is refused (exit 2)
+// with the key named, before anything is written.
+TEST_CASE("app_e2e: --print-config, read back by --config, tracks as the defaults do, bad files exit 2" *
+          doctest::timeout(test::budget_s(300))) {
+  const auto dir = test::scratch_dir("app_e2e_settings");
+  simulate(dir / "seq", 60, "480x270", 1);
+  const std::string app = test::bin_command("scopetrack");
+  const auto settings = dir / "settings.yaml";
+  REQUIRE(test::run_shell(app + " --print-config > " + test::shell_quoted(settings)) == 0);
+  std::string err;
+  REQUIRE_MESSAGE(track(dir / "seq", dir / "plain", &err, kDeterministic) == 0, err);
+  REQUIRE_MESSAGE(track(dir / "seq", dir / "filed", &err, kDeterministic + " --config " + test::shell_quoted(settings)) == 0,
+                  err);
+  const std::string plain = test::read_file_bytes(dir / "plain" / "trajectory.txt");
+  CHECK(data_lines(dir / "plain" / "trajectory.txt") > 30);
+  CHECK(plain == test::read_file_bytes(dir / "filed" / "trajectory.txt"));
+
+  // One line changed: the key and what was wrong with it.
+  const std::string text = test::read_file_bytes(settings);
+  const auto with_line = [&](const std::string& from, const std::string& to) {
+    const std::size_t at = text.find(from);
+    REQUIRE(at != std::string::npos);
+    std::string t = text;
+    t.replace(at, from.size(), to);
+    REQUIRE(write_file(dir / "bad.yaml", t).ok());
+  };
+  const auto refused = [&](const std::string& message) {
+    std::filesystem::remove_all(dir / "out_bad");
+    CHECK(track(dir / "seq", dir / "out_bad", &err, " --config " + test::shell_quoted(dir / "bad.yaml")) == 2);
+    CHECK_MESSAGE(err.find(message) != std::string::npos, err);
+    CHECK_FALSE(std::filesystem::exists(dir / "out_bad" / "summary.json"));
+  };
+  with_line("min_inlier_ratio: 0.35", "min_inlier_ration: 0.35");
+  refused("unknown setting 'min_inlier_ration'");
+  with_line("features.n_features: 1500", "features.n_features: 40");
+  refused("features.n_features: '40' is not a whole number in 50..4096");
+  with_line("ba.w_shape: 100", "ba.w_shape: -3");
+  refused("ba.w_shape: '-3' is not a number in 0..1e+06");
+  with_line("use_mask: 1", "use_mask: 1\nuse_mask: 0");
+  refused("use_mask is given twice");
+  CHECK(track(dir / "seq", dir / "out_bad", &err, " --config " + test::shell_quoted(dir / "missing.yaml")) == 2);
+  CHECK(err.find("--config") != std::string::npos);
+}
+

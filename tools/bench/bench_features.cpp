@@ -16,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "bench.h"
+#include "core/formats/text_scan.h"
 #include "core/image/image_pyramid.h"
 #include "core/features/orb_extractor.h"
 #include "core/features/orb_matcher.h"
@@ -85,7 +86,7 @@ bool bench_brute_force(const st::bench::Options& opt, const std::vector<cv::Mat>
   }
   char note[200];
   std::snprintf(note, sizeof note, "%d x %d keypoints, %d / %d matches; POPCNT %s on this CPU", a->count, b->count,
-                matched[1], matched[0], st::popcnt_available() ? "used" : "absent (both rows the same count)");
+                matched[1], matched[0], st::cpu_has_popcnt() ? "used" : "absent (both rows the same count)");
   st::bench::report(opt, {"features.match_brute_force", ms[1], "same matcher, SSE2 bit count", ms[0], note});
   return true;
 }
@@ -102,8 +103,14 @@ int bench_features(const st::bench::Options& opt) {
   st::OrbExtractor orb;
   st::ValidMaskBuilder valid;
   st::OrbConfig config;  // args: [relaxed_threshold [strict_threshold]] to explore
-  if (!opt.args.empty()) config.fast_threshold_relaxed = std::atoi(opt.args[0].c_str());
-  if (opt.args.size() > 1) config.fast_threshold_strict = std::atoi(opt.args[1].c_str());
+  for (std::size_t k = 0; k < opt.args.size() && k < 2; ++k) {
+    long long t = 0;
+    if (!st::parse_int64_in(opt.args[k], 1, 254, &t)) {
+      std::fprintf(stderr, "bench features: FAST thresholds are whole numbers in 1..254\n");
+      return 2;
+    }
+    (k == 0 ? config.fast_threshold_relaxed : config.fast_threshold_strict) = static_cast<int>(t);
+  }
   if (!orb.configure(config, 1280, 720) || !valid.configure(st::ValidMaskConfig{}, 1280, 720)) return 1;
   auto features = std::make_unique<st::FeatureSet>();
   st::ImagePyramid pyramid;  // the same pyramid alone, to split the time

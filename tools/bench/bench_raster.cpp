@@ -10,6 +10,7 @@
 
 #include "bench.h"
 #include "bench_liver.h"
+#include "core/formats/text_scan.h"
 #include "core/image/image.h"
 #include "core/raster/rasterizer.h"
 #include "tests/support/raster_scene.h"
@@ -177,7 +178,12 @@ int run(const Options& opt) {
   };
   // "raster only DS": just our render at 1/DS (for profilers), no baseline.
   if (opt.args.size() == 2 && opt.args[0] == "only") {
-    report_downscaled(std::atoi(opt.args[1].c_str()));
+    long long ds = 0;
+    if (!parse_int64_in(opt.args[1], 1, 4, &ds) || ds == 3) {
+      std::fprintf(stderr, "bench raster: only takes a downscale of 1, 2 or 4\n");
+      return 2;
+    }
+    report_downscaled(static_cast<int>(ds));
     return 0;
   }
   Row row;

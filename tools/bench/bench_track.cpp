@@ -4,11 +4,12 @@
 // read between steps (not timed). The sequence is simulated on first use
 // (scopetrack-sim beside this binary, orbit 1280x720, 300 frames, cached in
 // the temp folder) unless --sequence DIR is given.
-//   scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask]
-//                          [--no-occluder-mask] [--fast-reference-luma L] [--fast-reference-contrast C]
-//                          [--max-raster-triangles N] [--prior-subdivide N] [--log N]
+//   scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH]
+//                          [--config FILE] [--set KEY=VALUE]... [--prior-subdivide N] [--log N]
+// --config and --set are scopetrack's tracker settings (scopetrack --print-config).
 #include <algorithm>
 #include <cstdio>
+#include <cctype>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -17,7 +18,10 @@
 #include <vector>
 
 #include "bench.h"
+#include "core/formats/text_scan.h"
 #include "core/tracking/tracker.h"
+#include "core/tracking/tracker_settings.h"
+#include "hal/storage/file_io.h"
 #include "hal/storage/sequence_loader.h"
 #include "hal/capture/y4m_reader.h"
 #include "platform/alloc_counter.h"
@@ -30,32 +34,51 @@ struct TrackArgs {
   std::string sequence, scenario = "orbit", size = "1280x720";
   int frames = 300;
   int log_frames = 0;  // per-frame diagnostics on stderr for the first N frames
-  bool use_mask = true;
-  bool use_occluder_mask = true;
-  double fast_reference_luma = TrackerConfig{}.fast_reference_luma;  // 0: FAST thresholds never scaled
-  double fast_reference_contrast = TrackerConfig{}.fast_reference_contrast;  // 0: never scaled for contrast
-  int max_raster_triangles = TrackerConfig{}.max_raster_triangles;
+  TrackerConfig config;  // --config FILE, --set KEY=VALUE: the tracker's settings
   int prior_subdivide = 0;  // the simulated sequence's organ.ply split this many times (scopetrack-sim --prior-subdivide)
 };
 
+// A name the simulator's command line can carry unquoted: letters, digits,
+// 'x' sizes.
+bool plain_word(const std::string& s) {
+  return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) { return std::isalnum(static_cast<unsigned char>(c)); });
+}
+
 bool parse_track_args(const Options& opt, TrackArgs* a) {
+  const auto whole = [&](std::size_t* i, long long lo, long long hi, int* out) {
+    long long n = 0;
+    if (!parse_int64_in(opt.args[++*i], lo, hi, &n)) {
+      std::fprintf(stderr, "bench track: %s takes a whole number in %lld..%lld\n", opt.args[*i - 1].c_str(), lo, hi);
+      return false;
+    }
+    *out = static_cast<int>(n);
+    return true;
+  };
   for (std::size_t i = 0; i < opt.args.size(); ++i) {
     const std::string& k = opt.args[i];
     const bool v = i + 1 < opt.args.size();
+    Status setting = Status::Ok();
     if (k == "--sequence" && v) a->sequence = opt.args[++i];
     else if (k == "--scenario" && v) a->scenario = opt.args[++i];
     else if (k == "--size" && v) a->size = opt.args[++i];
-    else if (k == "--frames" && v) a->frames = std::atoi(opt.args[++i].c_str());
-    else if (k == "--log" && v) a->log_frames = std::atoi(opt.args[++i].c_str());
-    else if (k == "--no-mask") a->use_mask = false;
-    else if (k == "--no-occluder-mask") a->use_occluder_mask = false;
-    else if (k == "--fast-reference-luma" && v) a->fast_reference_luma = std::atof(opt.args[++i].c_str());
-    else if (k == "--fast-reference-contrast" && v) a->fast_reference_contrast = std::atof(opt.args[++i].c_str());
-    else if (k == "--max-raster-triangles" && v) a->max_raster_triangles = std::atoi(opt.args[++i].c_str());
-    else if (k == "--prior-subdivide" && v) a->prior_subdivide = std::atoi(opt.args[++i].c_str());
-    else return false;
+    else if (k == "--frames" && v) { if (!whole(&i, 1, 100000, &a->frames)) return false; }
+    else if (k == "--log" && v) { if (!whole(&i, 0, 100000, &a->log_frames)) return false; }
+    else if (k == "--prior-subdivide" && v) { if (!whole(&i, 0, 3, &a->prior_subdivide)) return false; }
+    else if (k == "--config" && v) {
+      auto text = read_file(opt.args[++i], 1 << 20);
+      setting = text ? read_tracker_settings(text.value(), &a->config) : Status(text.error());
+    } else if (k == "--set" && v) {
+      const std::string& kv = opt.args[++i];
+      const std::size_t eq = kv.find('=');
+      setting = eq == std::string::npos ? Status(make_error("--set takes KEY=VALUE"))
+                                        : apply_tracker_setting(kv.substr(0, eq), kv.substr(eq + 1), &a->config);
+    } else return false;
+    if (!setting) {
+      std::fprintf(stderr, "bench track: %s: %s\n", k.c_str(), setting.message().c_str());
+      return false;
+    }
   }
-  return a->frames > 0;
+  return plain_word(a->scenario) && plain_word(a->size);
 }
 
 // A simulated sequence in the temp folder (made once, then reused).
@@ -97,14 +120,9 @@ struct TrackRun {
 };
 
 Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, const TrackArgs& a) {
-  TrackerConfig cfg;
+  TrackerConfig cfg = a.config;
   cfg.width = seq.config.width;
   cfg.height = seq.config.height;
-  cfg.use_mask = a.use_mask;
-  cfg.use_occluder_mask = a.use_occluder_mask;
-  cfg.fast_reference_luma = a.fast_reference_luma;
-  cfg.fast_reference_contrast = a.fast_reference_contrast;
-  cfg.max_raster_triangles = a.max_raster_triangles;
   cfg.now_ns = &platform::monotonic_ns;
   auto tracker = std::make_unique<Tracker>();
   const CameraModel cam(seq.config.K, seq.config.distortion);
@@ -166,7 +184,8 @@ void report_stages(const Options& opt, const TrackRun& run) {
 int bench_track(const Options& opt) {
   TrackArgs a;
   if (!parse_track_args(opt, &a)) {
-    std::fprintf(stderr, "usage: scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH] [--no-mask] [--no-occluder-mask] [--fast-reference-luma L] [--fast-reference-contrast C] [--max-raster-triangles N] [--prior-subdivide N] [--log N]\n");
+    std::fprintf(stderr, "usage: scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH]"
+                         " [--config FILE] [--set KEY=VALUE]... [--prior-subdivide N] [--log N]\n");
     return 2;
   }
   std::filesystem::path dir = a.sequence;
@@ -177,7 +196,7 @@ int bench_track(const Options& opt) {
   }
   auto seq = load_sequence(dir);
   if (!seq) return std::fprintf(stderr, "bench track: %s\n", seq.message().c_str()), 1;
-  info(opt, "sequence " + dir.string() + (a.use_mask ? "" : " (no mask)"));
+  info(opt, "sequence " + dir.string() + (a.config.use_mask ? "" : " (no mask)"));
   auto run = run_tracker(opt, seq.value(), a);
   if (!run) return std::fprintf(stderr, "bench track: %s\n", run.message().c_str()), 1;
   report_stages(opt, run.value());
@@ -185,7 +204,7 @@ int bench_track(const Options& opt) {
     // A simplified prior (TrackerConfig::max_raster_triangles): the same
     // run rendering every triangle is the baseline, in this process.
     TrackArgs every = a;
-    every.max_raster_triangles = 0;
+    every.config.max_raster_triangles = 0;
     every.log_frames = 0;
     auto base = run_tracker(opt, seq.value(), every);
     if (!base) return std::fprintf(stderr, "bench track: %s\n", base.message().c_str()), 1;

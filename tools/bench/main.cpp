@@ -5,6 +5,8 @@
 #include <string>
 
 #include "bench.h"
+#include "core/formats/json_text.h"
+#include "core/formats/text_scan.h"
 #include "platform/clock.h"
 
 namespace st::bench {
@@ -36,15 +38,6 @@ double percentile(std::vector<double> v, double p) {
 }
 double median(std::vector<double> v) { return percentile(std::move(v), 50.0); }
 
-static std::string json_escape(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\';
-    if (static_cast<unsigned char>(c) < 0x20) continue;
-    o += c;
-  }
-  return o;
-}
 
 void report(const Options& opt, const Row& row) {
   // p10 next to the median: on a shared, noisy host the fast tail moves
@@ -57,11 +50,11 @@ void report(const Options& opt, const Row& row) {
     std::printf(
         "{\"bench\": \"%s\", \"median_ms\": %.4f, \"p99_ms\": %.4f, \"p10_ms\": %.4f, "
         "\"samples\": %zu",
-        json_escape(row.name).c_str(), med, p99, p10, row.samples_ms.size());
+        st::json_escaped(row.name).c_str(), med, p99, p10, row.samples_ms.size());
     if (has_base)
       std::printf(", \"baseline\": \"%s\", \"baseline_median_ms\": %.4f, \"speedup\": %.3f",
-                  json_escape(row.baseline).c_str(), base_med, base_med / med);
-    if (!row.note.empty()) std::printf(", \"note\": \"%s\"", json_escape(row.note).c_str());
+                  st::json_escaped(row.baseline).c_str(), base_med, base_med / med);
+    if (!row.note.empty()) std::printf(", \"note\": \"%s\"", st::json_escaped(row.note).c_str());
     std::printf("}\n");
   } else {
     std::printf("%-34s median %9.3f ms   p99 %9.3f ms   p10 %9.3f ms   (n=%zu)\n",
@@ -97,7 +90,12 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--json")) {
       opt.json = true;
     } else if (!std::strcmp(argv[i], "--iterations") && i + 1 < argc) {
-      opt.iterations = std::atoi(argv[++i]);
+      long long n = 0;
+      if (!st::parse_int64_in(argv[++i], 1, 1000000, &n)) {
+        std::fprintf(stderr, "scopetrack-bench: --iterations takes a count in 1..1000000\n");
+        return 2;
+      }
+      opt.iterations = static_cast<int>(n);
     } else if (!std::strcmp(argv[i], "--shared") && i + 1 < argc) {
       opt.shared_dir = argv[++i];
     } else if (!std::strcmp(argv[i], "--help") || !std::strcmp(argv[i], "-h")) {

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "core/formats/text_scan.h"
 #include "hal/storage/mesh_file.h"
 #include "platform/clock.h"
 #include "platform/socket.h"
@@ -42,7 +43,10 @@ bool parse(int argc, char** argv, Args* a) {
     } else if (!std::strcmp(argv[i], "--mesh") && has_value) {
       a->mesh = argv[++i];
     } else if (!std::strcmp(argv[i], "--connect-timeout") && has_value) {
-      a->connect_timeout_s = std::atof(argv[++i]);
+      if (!st::parse_double_in(argv[++i], 0.0, 86400.0, &a->connect_timeout_s)) {
+        std::fprintf(stderr, "scopetrack-console: --connect-timeout takes seconds in 0..86400\n");
+        return false;
+      }
     } else {
       std::fprintf(stderr, "scopetrack-console: unknown or incomplete argument '%s'\n", argv[i]);
       return false;

@@ -135,6 +135,10 @@ std::string format_eval_json(const EvalReport& rep) {
 
 std::string format_eval_table(const EvalReport& rep) {
   const EvalResult& r = rep.result;
+  // Speed as people read it: fps to 0.1, latency to 0.01 ms.
+  char fps[64] = "n/a (no summary.json)", p99[64] = "n/a";
+  if (rep.fps >= 0) std::snprintf(fps, sizeof fps, "%.1f", rep.fps);
+  if (rep.p99_latency_ms >= 0) std::snprintf(p99, sizeof p99, "%.2f ms", rep.p99_latency_ms);
   char buf[1024];
   std::snprintf(buf, sizeof buf,
                 "frames            %d (reported %d)\n"
@@ -148,9 +152,7 @@ std::string format_eval_table(const EvalReport& rep) {
                 r.frames, r.reported_frames, r.init_ok ? "yes" : "NO", r.lost_pct, r.wrong_pct,
                 r.wrong_frames, kWrongTrePx, r.tre_median_px, r.tre_mean_px, r.tre_p95_px,
                 r.tre_samples, r.rot_err_median_deg, r.trans_err_median_mm,
-                rep.fps >= 0 ? format_number(rep.fps).c_str() : "n/a (no summary.json)",
-                rep.p99_latency_ms >= 0 ? (format_number(rep.p99_latency_ms) + " ms").c_str()
-                                        : "n/a");
+                fps, p99);
   return buf;
 }
 

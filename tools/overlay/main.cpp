@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/formats/text_scan.h"
 #include "tools/overlay/overlay.h"
 
 static int usage() {
@@ -27,7 +28,12 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--no-text")) {
       o.style.text = false;
     } else if (!std::strcmp(argv[i], "--frames") && i + 1 < argc) {
-      o.max_frames = std::atoi(argv[++i]);
+      long long n = 0;
+      if (!st::parse_int64_in(argv[++i], 0, 10000000, &n)) {
+        std::fprintf(stderr, "scopetrack-overlay: --frames takes a frame count in 0..10000000\n");
+        return 2;
+      }
+      o.max_frames = static_cast<int>(n);
     } else if (!std::strcmp(argv[i], "--help") || !std::strcmp(argv[i], "-h")) {
       usage();
       return 0;

@@ -42,7 +42,7 @@ TEST_CASE("orb matcher: hamming256 equals the portable count and cv::norm(NORM_H
     const int expected = opencv_hamming(a, b);
     REQUIRE(st::hamming256(a.data(), b.data()) == expected);
     REQUIRE(st::hamming256_portable(a.data(), b.data()) == expected);
-    if (st::popcnt_available()) REQUIRE(st::hamming256_popcnt(a.data(), b.data()) == expected);
+    if (st::cpu_has_popcnt()) REQUIRE(st::hamming256_popcnt(a.data(), b.data()) == expected);
   }
 }
 
@@ -88,7 +88,7 @@ TEST_CASE("orb matcher: brute force and search by projection match the same with
       n[k] = search(m, match[k].data(), dist[k].data());
     }
     MESSAGE(std::string(what) << " matches " << n[0] << " / " << n[1] << "; POPCNT "
-                 << std::string(st::popcnt_available() ? "used" : "absent"));
+                 << std::string(st::cpu_has_popcnt() ? "used" : "absent"));
     CHECK(n[0] > 400);
     CHECK(n[0] == n[1]);
     CHECK(match[0] == match[1]);

@@ -33,7 +33,7 @@ TrackerConfig small_config(const Pinhole& K) {
   TrackerConfig c;
   c.width = K.width;
   c.height = K.height;
-  c.n_features = 1000;
+  c.features.n_features = 1000;
   c.max_map_points = 3000;
   c.max_keyframes = 12;
   c.keyframe_angle_deg = 3.0;  // keyframes every few frames: BA has work
@@ -47,8 +47,8 @@ class InlineChannel final : public BaChannel {
  public:
   Status configure(const TrackerConfig& c, const Mesh& mesh, const Pinhole& K) {
     BundleAdjusterOptions o;
-    o.w_shape = c.w_shape;
-    o.max_iterations = c.ba_max_iterations;
+    o.w_shape = c.ba.w_shape;
+    o.max_iterations = c.ba.max_iterations;
     o.max_time_s = 1.0;
     if (Status s = job_.configure(c.max_keyframes, c.max_map_points, c.ba_max_observations); !s.ok()) return s;
     return ba_.configure(o, mesh, K, c.max_map_points, c.ba_max_observations);
@@ -158,7 +158,7 @@ TEST_CASE("ba tracker: BA keeps tracking accurate and map points on the mesh (sy
   InlineChannel shape;
   REQUIRE(shape.configure(cfg, s.mesh, s.K).ok());
   const RunResult with_shape = run_orbit(cfg, &shape);
-  cfg.w_shape = 0.0;
+  cfg.ba.w_shape = 0.0;
   InlineChannel plain;
   REQUIRE(plain.configure(cfg, s.mesh, s.K).ok());
   const RunResult no_shape = run_orbit(cfg, &plain);
@@ -188,8 +188,8 @@ TEST_CASE("ba tracker: use_ba false hands out no job, bad BA settings are refuse
   CHECK(channel.solves_ == 0);
   CHECK(r.applied == 0);
   Tracker t;
-  for (const auto& bad : {+[](TrackerConfig* c) { c->w_shape = -1; }, +[](TrackerConfig* c) { c->ba_window_keyframes = 1; },
-                          +[](TrackerConfig* c) { c->ba_max_time_s = 0; }, +[](TrackerConfig* c) { c->ba_max_observations = 0; }}) {
+  for (const auto& bad : {+[](TrackerConfig* c) { c->ba.w_shape = -1; }, +[](TrackerConfig* c) { c->ba_window_keyframes = 1; },
+                          +[](TrackerConfig* c) { c->ba.max_time_s = 0; }, +[](TrackerConfig* c) { c->ba_max_observations = 0; }}) {
     TrackerConfig c = small_config(s.K);
     bad(&c);
     CHECK_FALSE(t.configure(c, s.mesh, CameraModel(s.K, Distortion{}), s.T_camera_model[0]).ok());

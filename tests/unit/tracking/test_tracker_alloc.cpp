@@ -36,7 +36,7 @@ TEST_CASE("tracker: zero heap allocations over 220 steps after start") {
   TrackerConfig cfg;
   cfg.width = K.width;
   cfg.height = K.height;
-  cfg.n_features = 1000;
+  cfg.features.n_features = 1000;
   cfg.max_map_points = 2000;  // small pools: culling runs during the test
   cfg.max_keyframes = 4;
   Tracker t;

@@ -86,8 +86,8 @@ Outcome track(const SmoothInvivo& seq, bool confirm) {
   // keypoints kept): their wrong matches are what makes the ratio refuse
   // right poses here. With the default mask (patch on the organ) the same
   // frames mostly pass the normal gates, and confirmation has little to do.
-  cfg.mask_margin_px = 12;
-  cfg.mask_patch_inside = false;
+  cfg.features.organ_margin_px = 12;
+  cfg.features.organ_patch_inside = false;
   // And the FAST thresholds unscaled: scaled to this dim organ's luma, more
   // frames pass the normal gates (lost 90, 10 confirmed).
   cfg.fast_reference_luma = 0.0;

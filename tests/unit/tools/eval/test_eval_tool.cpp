@@ -79,6 +79,13 @@ TEST_CASE("scopetrack-eval: dropped and shifted frames give the independently co
   CHECK(r->p99_latency_ms == doctest::Approx(7.25));
   const std::string js = format_eval_json(r.value());
   CHECK(js.find("\"lost_pct\": 20") != std::string::npos);
+  // The table rounds speed as people read it (no 17-digit doubles).
+  EvalReport rounded = r.value();
+  rounded.fps = 106.34495606484867;
+  rounded.p99_latency_ms = 23.900000000000002;
+  const std::string table = format_eval_table(rounded);
+  CHECK(table.find("fps               106.3\n") != std::string::npos);
+  CHECK(table.find("p99 latency       23.90 ms\n") != std::string::npos);
   (void)tiny;
 }
 

@@ -1,0 +1,84 @@
+#include "hal/capture/y4m_capture.h"
+
+#include "platform/clock.h"
+
+namespace st {
+
+Y4mCapture::~Y4mCapture() { stop(); }
+
+Status Y4mCapture::open(const std::filesystem::path& video, int ring_slots, double fps, double pace_fps) {
+  if (ring_slots < 2)
+    return make_error("capture ring of " + std::to_string(ring_slots) + " slots: at least 2 are needed");
+  if (Status s = reader_.open(video, ring_slots); !s) return s;
+  ring_slots_ = static_cast<std::uint32_t>(reader_.ring_slots());
+  released_.store(0, std::memory_order_relaxed);
+  stop_requested_.store(false, std::memory_order_relaxed);
+  fps_ = fps > 0 ? fps : 0;
+  pace_fps_ = pace_fps > 0 ? pace_fps : 0;
+  error_.reserve(512);
+  return Status::Ok();
+}
+
+Status Y4mCapture::start() {
+  if (thread_.joinable()) return make_error("the Y4M capture is already running");
+  thread_ = std::thread([this] { run(); });
+  return Status::Ok();
+}
+
+void Y4mCapture::next(SourceFrame* out) {
+  Message m;
+  queue_.pop_wait(&m);
+  out->kind = m.kind;
+  out->frame = m.frame;
+  out->t_ready_ns = m.t_handoff_ns;
+  out->timestamp_s = fps_ > 0 ? m.frame.index / fps_ : 0.0;
+}
+
+void Y4mCapture::release() {
+  released_.fetch_add(1, std::memory_order_release);
+  released_.notify_one();
+}
+
+void Y4mCapture::stop() {
+  if (!thread_.joinable()) return;
+  stop_requested_.store(true, std::memory_order_release);
+  released_.fetch_add(1, std::memory_order_release);  // wakes a wait for a free slot
+  released_.notify_one();
+  thread_.join();
+}
+
+// Frame n reuses the slot of frame n - ring_slots: wait until that one is
+// released. Never waits when the consumer keeps up.
+bool Y4mCapture::wait_for_free_slot(std::uint32_t frame) {
+  for (;;) {
+    if (stop_requested_.load(std::memory_order_acquire)) return false;
+    const std::uint32_t released = released_.load(std::memory_order_acquire);
+    if (frame - released < ring_slots_) return true;
+    released_.wait(released, std::memory_order_acquire);
+  }
+}
+
+void Y4mCapture::run() {
+  const std::int64_t t0_ns = platform::monotonic_ns();
+  for (std::uint32_t i = 0;; ++i) {
+    Message msg;
+    const bool go_on = wait_for_free_slot(i);
+    const ReadResult r = go_on ? reader_.read_frame(&msg.frame) : ReadResult::kEndOfStream;
+    if (r == ReadResult::kEndOfStream) {
+      msg.kind = SourceFrame::Kind::kEnd;
+    } else if (r == ReadResult::kError) {
+      error_.assign(reader_.error());  // capacity reserved at open (messages are < 512 bytes)
+      msg.kind = SourceFrame::Kind::kError;
+    } else {
+      msg.kind = SourceFrame::Kind::kFrame;
+      if (pace_fps_ > 0)
+        platform::sleep_until_ns(t0_ns + static_cast<std::int64_t>(static_cast<double>(i) * 1e9 / pace_fps_));
+    }
+    msg.t_handoff_ns = platform::monotonic_ns();
+    // At most ring_slots frames plus this marker are ever queued: never full.
+    queue_.push_wait(msg);
+    if (msg.kind != SourceFrame::Kind::kFrame) return;
+  }
+}
+
+}  // namespace st
