@@ -147,35 +147,27 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
   if (Status s = map_.configure(config.max_map_points, config.max_keyframes, kMaxKeypoints); !s.ok())
     return make_error("tracker: " + s.message());
   features_ = std::make_unique<FeatureSet>();
-  train_ = std::make_unique<FeatureSet>();
   const auto nk = static_cast<std::size_t>(kMaxKeypoints);
-  const auto np = static_cast<std::size_t>(config.max_map_points);
   kp_ideal_.assign(nk, Vec2::Zero());
   kp_inlier_.assign(nk, 0);
-  match_of_query_.assign(nk, -1);
-  train_point_.assign(nk, -1);
   corr_p_.assign(nk, Vec3::Zero());
   corr_px_.assign(nk, Vec2::Zero());
   corr_info_.assign(nk, 1.0);
   corr_point_.assign(nk, -1);
   corr_kp_.assign(nk, -1);
   corr_inlier_.assign(nk, 0);
-  local_ids_.assign(np, -1);
-  projected_.assign(np, ProjectedPoint{});
-  match_of_point_.assign(np, -1);
-  dist_of_point_.assign(np, 0);
-  searched_x_.assign(np, 0.f);
-  searched_y_.assign(np, 0.f);
-  search_active_.assign(np, 1);
-  ba_point_index_.assign(np, -1);
-  ba_keyframe_index_.assign(static_cast<std::size_t>(config.max_keyframes), -1);
-  ba_order_.assign(static_cast<std::size_t>(config.max_keyframes), -1);
   octave_info_.assign(static_cast<std::size_t>(kMaxPyramidLevels), 1.0);
-  octave_scale_.assign(static_cast<std::size_t>(kMaxPyramidLevels), 1.f);
   for (int o = 0; o < kMaxPyramidLevels; ++o) {
     octave_info_[static_cast<std::size_t>(o)] = octave_information(o, static_cast<double>(config.features.scale_factor));
-    octave_scale_[static_cast<std::size_t>(o)] = std::pow(config.features.scale_factor, static_cast<float>(o));
   }
+  if (Status s = ba_.configure(config, T_camera_model_init); !s.ok()) return s;
+  if (Status s = reloc_keyframes_.configure(config.width, config.height); !s.ok()) return s;
+  if (Status s = local_map_.configure(config.max_map_points, camera, config.features.scale_factor,
+                                      config.features.levels);
+      !s.ok())
+    return make_error("tracker: " + s.message());
+  gates_.configure(config);
+  fast_scaler_.configure(config.fast_reference_luma, config.fast_reference_contrast);
   started_ = false;
   return Status::Ok();
 }
@@ -196,13 +188,8 @@ void TrackerImpl::start() {
   aligner_.forget_reference();
   anchor_.forget_reference();
   ref_keyframe_ = -1;
-  reloc_cursor_ = 0;
-  ba_window_pending_ = ba_global_pending_ = false;
-  init_keyframe_ = init_keyframe_frame_ = -1;
-  keyframes_since_global_ = 0;
-  calibration_jobs_ = 0;
-  calibration_ = CalibrationCheck{};
-  ba_min_version_ = ba_version_ + 1;  // a job still out refers to the map just cleared
+  reloc_keyframes_.reset();
+  ba_.reset();
 }
 
 TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma) {
@@ -213,8 +200,8 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
     r.keyframes = map_.keyframe_count();
     return r;  // defined degraded state: lost, no pose
   }
-  const bool ba_applied = apply_ba();  // safe point: nothing of this frame uses the map yet
-  if (calibration_.suspect && calibration_.suspect_frame < 0) calibration_.suspect_frame = frame_index;
+  const bool ba_applied = ba_.apply(&map_);  // safe point: nothing of this frame uses the map yet
+  ba_.note_frame(frame_index);
   valid_view_ = valid_scene_ = valid_mask_.build(luma);
   const double t_valid = now_ms();
   bool occluder_refused = false;
@@ -231,22 +218,13 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
   if (occluder_pixels >= 0) r.times_ms[static_cast<int>(Stage::kOccluder)] = t_occluder - t_valid;
   r.occluder_pixels = occluder_pixels;
   r.occluder_refused = occluder_refused;
-  if (r.keyframe) {
-    ba_window_pending_ = true;
-    if (config_.ba_registration_keyframes > 0 && registration_free() &&
-        ++keyframes_since_global_ >= config_.ba_registration_keyframes) {
-      ba_global_pending_ = true;
-      keyframes_since_global_ = 0;
-    }
-  }
-  if (r.state == TrackState::kRelocalised && config_.ba_global_after_reloc) ba_global_pending_ = true;
-  if (r.state == TrackState::kInitialised) ba_window_pending_ = ba_global_pending_ = false;  // a fresh map
+  ba_.frame_done(map_, r);
   r.ba_applied = ba_applied;
-  r.ba_submitted = submit_ba();
+  r.ba_submitted = ba_.submit(map_, initialised_);
   r.map_points = map_.point_count();
   r.keyframes = map_.keyframe_count();
-  r.calibration_suspect = calibration_.suspect;
-  r.calibration_focal_scale = static_cast<float>(calibration_.focal_scale);
+  r.calibration_suspect = ba_.calibration().suspect;
+  r.calibration_focal_scale = static_cast<float>(ba_.calibration().focal_scale);
   if (config_.now_ns) r.times_ms[static_cast<int>(Stage::kTotal)] = now_ms() - t0;
   return r;
 }

@@ -82,9 +82,9 @@ struct TrackerConfig {
   double fast_reference_luma = 80.0;
   // A veiled view (surgical smoke, a fogged lens): the frame is bright but
   // its texture is flat, and every intensity difference FAST tests shrinks
-  // with the veil. A frame whose organ texture contrast (TrackerImpl::
-  // organ_contrast: the median difference of neighbouring 4x4 block means,
-  // luma units) is below this has its FAST thresholds scaled by contrast /
+  // with the veil. A frame whose organ texture contrast
+  // (FastThresholdScaler::organ_contrast: the median difference of
+  // neighbouring 4x4 block means, luma units) is below this has its FAST thresholds scaled by contrast /
   // fast_reference_contrast, as a dim frame is (the smaller scale wins).
   // Measured: the real liver frame 6.6 (at 1280x720), the simulator's
   // procedural texture 7-9, its real-photo texture 3.4-4.4 (smoother than the

@@ -1,5 +1,12 @@
-// TrackerImpl: the state and per-frame stages behind core/tracking/tracker.h.
-// Internal header (core/ only). Every buffer is sized in configure(); the
+// TrackerImpl: the per-frame sequence behind core/tracking/tracker.h, the
+// paper's: the valid and occluder masks, the mesh rendered at the predicted
+// pose, features inside it, the local map searched by projection, a robust
+// pose judged by the quality gates (or confirmed by direct alignment), a
+// keyframe with mesh-depth points, and when lost dead reckoning and
+// relocalisation; bundle adjustment handed out and applied. It composes
+// the parts that hold their own state and tests: LocalMapSearch,
+// KeyframeRelocaliser, PoseGates, FastThresholdScaler, BaHandoff. Internal
+// header (core/tracking only). Every buffer is sized in configure(); the
 // stage functions (tracker_track.cpp, tracker_map.cpp, tracker_reloc.cpp)
 // allocate nothing. Thread: the tracking thread.
 #pragma once
@@ -23,31 +30,15 @@
 #include "core/pose/pnp_ransac.h"
 #include "core/pose/pose_solver.h"
 #include "core/raster/rasterizer.h"
+#include "core/tracking/ba_handoff.h"
+#include "core/tracking/fast_threshold_scaler.h"
+#include "core/tracking/keyframe_relocaliser.h"
+#include "core/tracking/local_map_search.h"
+#include "core/tracking/pose_gates.h"
 #include "core/tracking/tracker.h"
 #include "core/image/valid_mask.h"
 
 namespace st {
-
-// Quality gates of one frame (normal, or stricter after relocalisation).
-struct QualityGates {
-  int min_inliers = 0;
-  double min_inlier_ratio = 0;
-  double max_rms_px = 0;
-  double min_mask_agreement = 0;
-  int min_spread_cells = 0;
-};
-
-// Outcome of one pose estimate from correspondences, before the state decision.
-struct PoseEstimate {
-  bool solved = false;
-  SE3 T_camera_model;
-  int matches = 0, inliers = 0;
-  double rms_px = 0, mask_agreement = 0;
-  double whitened_rms = 0;  // sqrt(mean(info * |r|^2)) over the inliers: level-0 pixels
-  int spread_cells = 0;
-  double mean_depth_mm = 100.0;  // of the inliers at the final pose
-  double inlier_ratio() const { return matches > 0 ? static_cast<double>(inliers) / matches : 0.0; }
-};
 
 class TrackerImpl {
  public:
@@ -58,14 +49,12 @@ class TrackerImpl {
   TrackResult step(GrayView luma, int frame_index, ChromaView chroma);
   const TrackingMap& map() const { return map_; }
   int raster_triangles() const { return raster_.triangle_count(); }
-  const CalibrationCheck& calibration_check() const { return calibration_; }
-  void set_ba_channel(BaChannel* channel) { ba_channel_ = channel; }
+  const CalibrationCheck& calibration_check() const { return ba_.calibration(); }
+  void set_ba_channel(BaChannel* channel) { ba_.set_channel(channel); }
 
  private:
   // Stages (tracker_track.cpp).
   bool extract(GrayView luma, bool with_organ_mask, TrackResult* r);
-  int select_local_map(const SE3& T_camera_model, bool check_occlusion);
-  void reproject_local_map(const SE3& T_camera_model);
   bool weak_first_pass(bool solved, const PoseEstimate& e) const;
   double image_shift_px(const SE3& a, const SE3& b) const;
   double view_difference_px(const SE3& a, const SE3& b) const;
@@ -75,9 +64,6 @@ class TrackerImpl {
   bool solve_pose(SE3* T_camera_model, PoseEstimate* e);
   bool track_from(const SE3& T_predicted, float first_radius_px, PoseEstimate* e, TrackResult* r);
   void measure_final(PoseEstimate* e);
-  bool passes(const PoseEstimate& e, const QualityGates& g) const;
-  QualityGates gates(bool strict) const;
-  QualityGates confirm_gates() const;
   double anchored_share() const;
   double anchor_agreement_px(const SE3& T_guess, const SE3& T_features);
   TrackResult track(GrayView luma, int frame_index);
@@ -93,17 +79,7 @@ class TrackerImpl {
   TrackResult relocalise(GrayView luma, int frame_index);
   bool reloc_with_keyframe(int keyframe_id, PoseEstimate* e, TrackResult* r);
   void render_at(const SE3& T_camera_model);
-  // Bundle adjustment hand-off (tracker_ba.cpp).
-  bool apply_ba();
-  bool submit_ba();
-  int add_job_keyframe(BaJob* job, int keyframe_id, bool fixed);
-  void add_job_links(BaJob* job, int keyframe_id, int job_keyframe, bool add_points);
-  void fill_job(BaJob* job, bool global);
-  int next_reloc_keyframe();
-  void rank_reloc_keyframes();
   int remove_occluders_from_valid(GrayView luma, ChromaView chroma, bool* refused);
-  float fast_threshold_scale(GrayView luma, GrayView organ, TrackResult* r) const;
-  double organ_contrast(GrayView luma, GrayView organ) const;
   double now_ms() const;
   void lap(Stage s, double* t_last_ms, TrackResult* r) const;
 
@@ -133,30 +109,18 @@ class TrackerImpl {
   PoseSolver solver_;
   PnpRansac ransac_;
   TrackingMap map_;
-  std::unique_ptr<FeatureSet> features_, train_;
+  std::unique_ptr<FeatureSet> features_;
 
   // Per frame, sized in configure().
   std::vector<Vec2> kp_ideal_;            // undistorted keypoints
   std::vector<std::uint8_t> kp_inlier_;   // keypoint is a pose inlier this frame
-  std::vector<std::int32_t> local_ids_;   // local map: point ids
-  std::vector<ProjectedPoint> projected_; // local map: projections at the current pose
-  std::vector<std::int32_t> match_of_point_, dist_of_point_;
-  // Where the last search of this selection looked (its radii stay in
-  // projected_) and, for the next one, which points still need it
-  // (match_local_map).
-  std::vector<float> searched_x_, searched_y_;
-  std::vector<std::uint8_t> search_active_;
-  bool searched_valid_ = false;  // the arrays describe the last search of the current selection
-  std::vector<std::int32_t> match_of_query_;
-  std::vector<std::int32_t> train_point_;  // relocalisation: map point of each train_ keypoint
   std::vector<Vec3> corr_p_;
   std::vector<Vec2> corr_px_;
   std::vector<double> corr_info_;
   std::vector<std::int32_t> corr_point_, corr_kp_;
   std::vector<std::uint8_t> corr_inlier_;
   std::vector<double> octave_info_;       // per octave: 1 / sigma^2
-  std::vector<float> octave_scale_;       // per octave: scale_factor^octave
-  int local_count_ = 0, corr_count_ = 0;
+  int corr_count_ = 0;
 
   // Tracking state.
   bool started_ = false, initialised_ = false, lost_ = false;
@@ -164,26 +128,16 @@ class TrackerImpl {
   int lost_frames_ = 0;
   int strict_frames_left_ = 0;
   int ref_keyframe_ = -1;
-  int reloc_cursor_ = 0;
   SE3 T_last_keyframe_;
 
-  // Bundle adjustment: jobs go out through ba_channel_ (not owned).
-  BaChannel* ba_channel_ = nullptr;
-  bool ba_window_pending_ = false, ba_global_pending_ = false;
-  // Frame 0's keyframe (slot and stamp; -1: none) while it carries the
-  // registration prior, and the keyframes since the last global BA.
-  int init_keyframe_ = -1, init_keyframe_frame_ = -1;
-  int keyframes_since_global_ = 0;
-  bool registration_free() const;     // the prior applies: sigmas > 0 and frame 0's keyframe alive
-  std::uint32_t ba_version_ = 0;      // of the last job handed out (never reset)
-  std::uint32_t ba_min_version_ = 0;  // jobs below this came from before start(): not applied
-  // The calibration's focal test (TrackerConfig::check_calibration).
-  int calibration_jobs_ = 0;        // window jobs handed out with the test
-  CalibrationCheck calibration_;
-  void judge_calibration(const BaSummary& s);
-  std::vector<std::int32_t> ba_point_index_;     // per map point slot: its index in the job being filled
-  std::vector<std::int32_t> ba_keyframe_index_;  // per keyframe slot: likewise
-  std::vector<std::int32_t> ba_order_;           // keyframe slots, newest first
+  // The parts: bundle-adjustment hand-off with the calibration test, the
+  // quality gates, the FAST threshold scaling, the local map's search, the
+  // relocaliser's keyframe candidates.
+  BaHandoff ba_;
+  PoseGates gates_;
+  FastThresholdScaler fast_scaler_;
+  LocalMapSearch local_map_;
+  KeyframeRelocaliser reloc_keyframes_;
   int last_inliers_ = 0;            // inliers of the last accepted frame
   double last_depth_mm_ = 100.0;    // mean inlier depth of the last accepted frame
   SE3 lost_velocity_, T_dead_reckoned_;  // while lost: the last velocity, carried forward
@@ -192,8 +146,6 @@ class TrackerImpl {
   static constexpr double kUnknownMotion = 1e9;
   double lost_motion_px_ = kUnknownMotion;
   bool reloc_seed_ok_ = false;  // the relocalised frame's pose may seed a keyframe
-  std::array<std::int32_t, kMaxKeyframes> reloc_order_{};  // keyframes by distance to the last pose
-  int reloc_order_count_ = 0;
 };
 
 }  // namespace st

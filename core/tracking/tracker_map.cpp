@@ -28,9 +28,7 @@ TrackResult TrackerImpl::initialise(GrayView luma, int frame_index) {
   map_.clear();
   ref_keyframe_ = -1;
   const int kf = add_keyframe(T_init_, frame_index, false);
-  init_keyframe_ = kf;
-  init_keyframe_frame_ = kf >= 0 ? map_.keyframe(kf).frame : -1;
-  keyframes_since_global_ = 0;
+  ba_.map_initialised(map_, kf);
   lap(Stage::kMap, &t, &r);
   initialised_ = true;
   lost_ = false;
@@ -149,7 +147,7 @@ bool TrackerImpl::need_keyframe(const PoseEstimate& e) {
 
 // Points of the local map at the final pose were visible; inliers were found.
 void TrackerImpl::update_counters(int frame_index) {
-  for (int i = 0; i < local_count_; ++i) ++map_.point(local_ids_[static_cast<std::size_t>(i)]).visible;
+  for (int i = 0; i < local_map_.size(); ++i) ++map_.point(local_map_.point_id(i)).visible;
   for (int i = 0; i < corr_count_; ++i) {
     if (!corr_inlier_[static_cast<std::size_t>(i)]) continue;
     MapPoint& p = map_.point(corr_point_[static_cast<std::size_t>(i)]);

@@ -54,7 +54,7 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   lap(Stage::kPyramid, &t, &r);  // image preparation, dead reckoning
   render_at(T_guess);
   lap(Stage::kRaster, &t, &r);
-  const QualityGates strict = gates(true);
+  const QualityGates strict = gates_.strict();
   PoseEstimate e;
   const bool solved = track_from(T_guess, config_.wide_radius_px, &e, &r);
   // Features that land where dead reckoning predicted, within the radius
@@ -64,11 +64,11 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   // after it). Otherwise the strict gates of relocalisation apply.
   const double agreement_px = solved && measured ? view_difference_px(T_guess, e.T_camera_model) : kUnknownMotion;
   const bool confirmed = agreement_px <= static_cast<double>(config_.search_radius_px);
-  bool found = solved && passes(e, confirmed ? gates(false) : strict);
+  bool found = solved && PoseGates::passes(e, confirmed ? gates_.normal() : strict);
   // A pose only the relaxed gates pass, if direct alignment against the
   // anchor confirms it (see anchor_agreement_px): measured from a trusted
   // frame, so no strict frames after it either.
-  if (!found && solved && passes(e, confirm_gates()))
+  if (!found && solved && PoseGates::passes(e, gates_.confirm()))
     found = r.confirmed_by_alignment =
         anchor_agreement_px(T_guess, e.T_camera_model) <= config_.confirm_agreement_px;
   const bool found_confirmed = found && (confirmed || r.confirmed_by_alignment);
@@ -76,15 +76,15 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   // if it passes the strict gates, or if the two measurements agree within
   // the refine radius (a weak feature pose that is still several pixels
   // off left its error in the map for the rest of a run).
-  reloc_seed_ok_ = found && (passes(e, strict) || agreement_px <= static_cast<double>(config_.refine_radius_px));
+  reloc_seed_ok_ = found && (PoseGates::passes(e, strict) || agreement_px <= static_cast<double>(config_.refine_radius_px));
   PoseEstimate best = e;  // reported measures when nothing passes: the attempt with most inliers
   t = now_ms();
-  if (reloc_order_count_ == 0) rank_reloc_keyframes();
+  if (!reloc_keyframes_.ranked()) reloc_keyframes_.rank(map_, T_last_, last_depth_mm_);
   for (int j = 0; !found && j < config_.reloc_keyframes_per_frame && r.features > 0; ++j) {
-    const int kf = next_reloc_keyframe();
+    const int kf = reloc_keyframes_.next(map_);
     if (kf < 0) break;
     e = PoseEstimate{};
-    found = reloc_with_keyframe(kf, &e, &r) && passes(e, strict);
+    found = reloc_with_keyframe(kf, &e, &r) && PoseGates::passes(e, strict);
     reloc_seed_ok_ = found;
     if (found || e.inliers > best.inliers) best = e;
   }
@@ -99,63 +99,17 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   return r;
 }
 
-// Orders the alive keyframes by how close their view is to the last good
-// pose (camera centre distance plus viewing angle at the last tracked
-// depth): the scope most often comes back near where it was lost.
-void TrackerImpl::rank_reloc_keyframes() {
-  const Vec3 centre = -(T_last_.rotation().transpose() * T_last_.translation());
-  int n = 0;
-  for (int id = 0; id < map_.keyframe_capacity() && n < kMaxKeyframes; ++id)
-    if (map_.keyframe(id).alive) reloc_order_[static_cast<std::size_t>(n++)] = id;
-  const auto cost = [&](int id) {
-    const SE3& T = map_.keyframe(id).T_camera_model;
-    const Vec3 c = -(T.rotation().transpose() * T.translation());
-    return (c - centre).norm() + last_depth_mm_ * pose_delta(T, T_last_).angle_deg * M_PI / 180.0;
-  };
-  std::sort(reloc_order_.begin(), reloc_order_.begin() + n, [&](int a, int b) { return cost(a) < cost(b); });
-  reloc_order_count_ = n;
-  reloc_cursor_ = 0;
-}
-
-// The next keyframe of the ranked order (cycling), skipping culled ones; -1
-// when there is none.
-int TrackerImpl::next_reloc_keyframe() {
-  for (int tries = 0; tries < reloc_order_count_; ++tries) {
-    const int id = reloc_order_[static_cast<std::size_t>(reloc_cursor_)];
-    reloc_cursor_ = (reloc_cursor_ + 1) % reloc_order_count_;
-    if (map_.keyframe(id).alive) return id;
-  }
-  return -1;
-}
-
 // Brute-force matches of this frame against one keyframe's linked map
 // points, a P3P RANSAC pose, then tracking by projection from it.
 bool TrackerImpl::reloc_with_keyframe(int keyframe_id, PoseEstimate* e, TrackResult* r) {
-  const Keyframe& kf = map_.keyframe(keyframe_id);
-  FeatureSet& train = *train_;
-  train.clear();
-  train.width = config_.width;
-  train.height = config_.height;
-  int n = 0;
-  for (int i = 0; i < kf.link_count && n < kMaxKeypoints; ++i) {
-    const KeyframeLink& l = kf.links[i];
-    const MapPoint* p = map_.linked_point(l);
-    if (!p) continue;
-    const auto ns = static_cast<std::size_t>(n++);
-    train.keypoints[ns] = Keypoint{l.x, l.y, l.angle_deg, 0.f, l.octave};
-    train.descriptors[ns] = p->descriptor;
-    train_point_[ns] = l.point;
-  }
-  train.count = n;
-  if (n < config_.min_inliers) return false;
   const FeatureSet& f = *features_;
-  matcher_.match_brute_force(f, train, match_of_query_.data(), nullptr);
+  if (reloc_keyframes_.match(map_, keyframe_id, f, config_.min_inliers, &matcher_) < config_.min_inliers) return false;
   int c = 0;
   for (int q = 0; q < f.count; ++q) {
-    const int m = match_of_query_[static_cast<std::size_t>(q)];
-    if (m < 0) continue;
+    const int point = reloc_keyframes_.matched_point(q);
+    if (point < 0) continue;
     const auto cs = static_cast<std::size_t>(c++);
-    corr_point_[cs] = train_point_[static_cast<std::size_t>(m)];
+    corr_point_[cs] = point;
     corr_p_[cs] = map_.point(corr_point_[cs]).p_model;
     corr_px_[cs] = kp_ideal_[static_cast<std::size_t>(q)];
     corr_info_[cs] = octave_info_[static_cast<std::size_t>(f.keypoints[static_cast<std::size_t>(q)].octave)];

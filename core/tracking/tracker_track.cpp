@@ -7,7 +7,6 @@
 #include <bit>
 #include <cmath>
 
-#include "core/base/histogram_rank.h"
 #include "core/tracking/tracker_impl.h"
 
 namespace st {
@@ -15,12 +14,6 @@ namespace st {
 namespace {
 
 Vec3 camera_centre(const SE3& T_camera_model) { return -(T_camera_model.rotation().transpose() * T_camera_model.translation()); }
-
-// Depth tolerance of "this point is the visible surface": 3% plus 2 mm
-// covers raster quantisation and a prediction a few mm off.
-bool visible_at_depth(double z_mm, float raster_depth_mm) {
-  return raster_depth_mm > 0.f && z_mm <= 1.03 * static_cast<double>(raster_depth_mm) + 2.0;
-}
 
 // How far (level-0 px) the final pose may move the view from the render's
 // pose before the quality measures need a new render.
@@ -36,7 +29,9 @@ constexpr double kAlternativeStartPx = 4.0;
 bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
   const GrayView organ = with_organ_mask && config_.use_mask && raster_valid_ ? raster_.mask() : GrayView{};
   FeatureSet& f = *features_;
-  orb_.set_threshold_scale(fast_threshold_scale(luma, organ, r));
+  const FastThresholdScale scale = fast_scaler_.measure(luma, organ, valid_view_, valid_mask_);
+  if (scale.low_contrast) r->low_contrast = true;
+  orb_.set_threshold_scale(scale.scale);
   r->fast_threshold_scale = orb_.threshold_scale();
   if (!orb_.extract(luma, organ, valid_view_, f)) f.clear();
   for (int k = 0; k < f.count; ++k) {
@@ -53,181 +48,16 @@ bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
   return f.count > 0;
 }
 
-// The FAST threshold scale of this frame: for a dim frame
-// (TrackerConfig::fast_reference_luma) the median block-mean luma over the
-// valid mask and, if given, the organ mask (ValidMaskBuilder::
-// median_block_mean), above video black (16), over the reference's; for a
-// veiled one (fast_reference_contrast) the organ's texture contrast over
-// the reference's; the smaller one, at most 1. 1 when both are off or
-// there is no pixel to measure. Sets r->low_contrast when the contrast's
-// scale is the one taken.
-float TrackerImpl::fast_threshold_scale(GrayView luma, GrayView organ, TrackResult* r) const {
-  constexpr int kBlack = 16;
-  if (valid_view_.empty()) return 1.f;
-  double s = 1.0;
-  if (config_.fast_reference_luma > kBlack) {
-    const int median = valid_mask_.median_block_mean(valid_view_, organ);
-    if (median >= 0) s = std::min(1.0, static_cast<double>(median - kBlack) / (config_.fast_reference_luma - kBlack));
-  }
-  if (config_.fast_reference_contrast > 0) {
-    const double contrast = organ_contrast(luma, organ);
-    if (contrast >= 0 && contrast < s * config_.fast_reference_contrast) {
-      s = contrast / config_.fast_reference_contrast;
-      r->low_contrast = true;
-    }
-  }
-  return static_cast<float>(std::clamp(s, 0.0, 1.0));
-}
-
-// The organ's texture contrast in this frame (8-bit luma units): the
-// median, over a 16-px grid of places inside the valid mask and (if given)
-// the organ mask, of |B(x+4, y) - B(x, y)| + |B(x, y+4) - B(x, y)|, B the
-// mean of the 4x4 block at (x, y). Block means keep the sensor noise out
-// (a 16th of its variance), so that what is measured is the tissue's
-// texture: a veil (surgical smoke, a fogged lens) or a dimmer light scales
-// it down with the intensity differences FAST's thresholds test. -1 when
-// no place qualifies.
-double TrackerImpl::organ_contrast(GrayView luma, GrayView organ) const {
-  constexpr int kStep = 16, kBlock = 4;
-  constexpr int kBins = 1024;  // in 1/16 luma units (block sums of 16 pixels)
-  std::array<int, kBins> hist{};
-  long long n = 0;
-  const GrayView& v = valid_view_;
-  const auto block = [&](int x, int y) {
-    int sum = 0;
-    for (int j = 0; j < kBlock; ++j) {
-      const std::uint8_t* row = luma.row(y + j) + x;
-      for (int i = 0; i < kBlock; ++i) sum += row[i];
-    }
-    return sum;
-  };
-  for (int y = 0; y + 2 * kBlock <= luma.height; y += kStep) {
-    const std::uint8_t* vrow = v.row((y + kBlock) * v.height / luma.height);
-    const std::uint8_t* orow = organ.empty() ? nullptr : organ.row((y + kBlock) * organ.height / luma.height);
-    for (int x = 0; x + 2 * kBlock <= luma.width; x += kStep) {
-      const int cx = x + kBlock;
-      if (!vrow[cx * v.width / luma.width] || (orow && !orow[cx * organ.width / luma.width])) continue;
-      const int b = block(x, y);
-      const int d = std::abs(block(x + kBlock, y) - b) + std::abs(block(x, y + kBlock) - b);
-      ++hist[static_cast<std::size_t>(std::min(d, kBins - 1))];
-      ++n;
-    }
-  }
-  if (n == 0) return -1.0;
-  return static_cast<double>(histogram_rank(hist, (n - 1) / 2)) / (kBlock * kBlock);
-}
-
-// Projects every alive map point at T_camera_model into the local map
-// (bounded by the projection buffers): in front, inside the image, within
-// the scale range and 60 degrees of the creating view, and (with the raster
-// rendered near that pose) not hidden behind the mesh.
-//
-// The occlusion test reads the depth buffer at scattered pixels (0.9 MB at
-// 1280x720's half-size raster, beyond the core's fastest caches): that read
-// was ~60 % of this loop's samples. So a point that passes the cheap tests
-// waits in a short queue while its depth is prefetched, and is tested and
-// slotted when it leaves; the queue keeps id order, so the selection is the
-// same as testing each point at once.
-int TrackerImpl::select_local_map(const SE3& T_camera_model, bool check_occlusion) {
-  searched_valid_ = false;  // a new selection: no earlier search covers it
-  const Vec3 centre = camera_centre(T_camera_model);
-  const double log_scale = std::log(static_cast<double>(config_.features.scale_factor));
-  const int capacity = static_cast<int>(projected_.size());
-  const ImageView<const float> depth = raster_.depth();
-  int n = 0;
-  struct Pending {
-    int id;
-    double z_mm, dist;
-    Vec2 ideal;
-    const float* raster_depth;  // null: no occlusion test
-  };
-  constexpr int kQueue = 8;
-  std::array<Pending, kQueue> queue;
-  int head = 0, queued = 0;
-  const auto admit = [&](const Pending& c) {
-    if (n >= capacity) return;  // full: where the unqueued loop stopped
-    if (c.raster_depth && !visible_at_depth(c.z_mm, *c.raster_depth)) return;
-    const MapPoint& p = map_.point(c.id);
-    const int slot = n++;
-    const Vec2 px = distorted_ ? camera_.distort_pixel(c.ideal) : c.ideal;
-    const double ref = static_cast<double>(p.ref_distance_mm);
-    const int octave =
-        std::clamp(p.ref_octave + static_cast<int>(std::lround(std::log(ref / c.dist) / log_scale)),
-                   0, config_.features.levels - 1);
-    ProjectedPoint& q = projected_[static_cast<std::size_t>(slot)];
-    q.x = static_cast<float>(px.x());
-    q.y = static_cast<float>(px.y());
-    q.predicted_octave = octave;
-    q.ref_angle_deg = p.ref_angle_deg;
-    q.descriptor = p.descriptor;
-    local_ids_[static_cast<std::size_t>(slot)] = c.id;
-  };
-  for (int id = 0; id < map_.point_high_water() && n < capacity; ++id) {
-    const MapPoint& p = map_.point(id);
-    if (!p.alive) continue;
-    const Vec3 p_camera = T_camera_model * p.p_model;
-    if (p_camera.z() < 1.0) continue;
-    const Vec3 ray = p.p_model - centre;
-    const double dist = ray.norm(), ref = static_cast<double>(p.ref_distance_mm);
-    if (dist < 0.4 * ref || dist > 2.5 * ref || ray.dot(p.view_dir_model) < 0.5 * dist) continue;
-    const Vec2 ideal = K_.project(p_camera);
-    if (!K_.in_image(ideal, 2.0)) continue;
-    const float* raster_depth = nullptr;
-    if (check_occlusion) {
-      const Vec2 rp = raster_.full_to_raster(ideal);
-      const int x = static_cast<int>(std::lround(rp.x())), y = static_cast<int>(std::lround(rp.y()));
-      if (!depth.contains(x, y)) continue;
-      raster_depth = &depth(x, y);
-      __builtin_prefetch(raster_depth);
-    }
-    if (queued == kQueue) {
-      admit(queue[static_cast<std::size_t>(head)]);
-      head = (head + 1) % kQueue;
-      --queued;
-    }
-    queue[static_cast<std::size_t>((head + queued) % kQueue)] =
-        Pending{id, p_camera.z(), dist, ideal, raster_depth};
-    ++queued;
-  }
-  for (; queued > 0; --queued, head = (head + 1) % kQueue)
-    admit(queue[static_cast<std::size_t>(head)]);
-  local_count_ = n;
-  return n;
-}
-
-// Search by projection with radius_px (scaled by the predicted octave) into
-// the correspondence arrays. Returns their count.
+// Search by projection of the local map (LocalMapSearch) with radius_px,
+// into the correspondence arrays. Returns their count.
 int TrackerImpl::match_local_map(float radius_px) {
-  // A point whose circle now lies inside the circle its last search of this
-  // selection covered, and which found no candidate within max_distance
-  // there, cannot match now (its candidates are a subset): not searched
-  // again. Exact: the matches are the same as searching every point.
-  const bool prune = searched_valid_;
-  const std::span<const std::uint16_t> best = matcher_.best_distances();
-  const int max_distance = matcher_.config().max_distance;
-  for (int i = 0; i < local_count_; ++i) {
-    const auto is = static_cast<std::size_t>(i);
-    ProjectedPoint& q = projected_[is];
-    const float searched_radius = q.radius_px;  // the last search's (only this function sets it)
-    q.radius_px = radius_px * octave_scale_[static_cast<std::size_t>(q.predicted_octave)];
-    if (prune) {
-      const float dx = q.x - searched_x_[is], dy = q.y - searched_y_[is];
-      const float slack = searched_radius - q.radius_px - 1e-3f;  // how far the circle may move and stay inside
-      const bool inside = slack >= 0.f && dx * dx + dy * dy <= slack * slack;
-      search_active_[is] = !(inside && best[is] > max_distance);
-    }
-    searched_x_[is] = q.x;
-    searched_y_[is] = q.y;
-  }
-  searched_valid_ = true;
-  matcher_.search_by_projection(projected_.data(), local_count_, *features_, grid_, match_of_point_.data(),
-                                dist_of_point_.data(), prune ? search_active_.data() : nullptr);
+  local_map_.search(radius_px, *features_, grid_, &matcher_);
   int c = 0;
-  for (int i = 0; i < local_count_ && c < kMaxKeypoints; ++i) {
-    const int k = match_of_point_[static_cast<std::size_t>(i)];
+  for (int i = 0; i < local_map_.size() && c < kMaxKeypoints; ++i) {
+    const int k = local_map_.match(i);
     if (k < 0) continue;
     const auto cs = static_cast<std::size_t>(c++);
-    const int id = local_ids_[static_cast<std::size_t>(i)];
+    const int id = local_map_.point_id(i);
     corr_p_[cs] = map_.point(id).p_model;
     corr_px_[cs] = kp_ideal_[static_cast<std::size_t>(k)];
     corr_info_[cs] = octave_info_[static_cast<std::size_t>(features_->keypoints[static_cast<std::size_t>(k)].octave)];
@@ -249,25 +79,6 @@ bool TrackerImpl::solve_pose(SE3* T_camera_model, PoseEstimate* e) {
   for (int i = 0; i < corr_count_; ++i)
     corr_inlier_[static_cast<std::size_t>(i)] = ok && i < static_cast<int>(flags.size()) ? flags[static_cast<std::size_t>(i)] : 0;
   return ok && e->inliers > 0;
-}
-
-// Moves the selected local map to T_camera_model without repeating the
-// selection tests (visibility, scale, occlusion): the refine pass reuses the
-// set chosen at the prediction, only the pixel positions change.
-void TrackerImpl::reproject_local_map(const SE3& T_camera_model) {
-  for (int i = 0; i < local_count_; ++i) {
-    const auto is = static_cast<std::size_t>(i);
-    const Vec3 p_camera = T_camera_model * map_.point(local_ids_[is]).p_model;
-    ProjectedPoint& q = projected_[is];
-    if (p_camera.z() < 1.0) {
-      q.x = q.y = -1e6f;  // behind the camera now: no candidate can match
-      continue;
-    }
-    const Vec2 ideal = K_.project(p_camera);
-    const Vec2 px = distorted_ ? camera_.distort_pixel(ideal) : ideal;
-    q.x = static_cast<float>(px.x());
-    q.y = static_cast<float>(px.y());
-  }
 }
 
 // Dead reckoning while lost: the camera's motion since the reference frame
@@ -415,7 +226,7 @@ bool TrackerImpl::weak_first_pass(bool solved, const PoseEstimate& e) const {
 // pose with a radius that covers how far the solve moved the view.
 bool TrackerImpl::track_from(const SE3& T_predicted, float first_radius_px, PoseEstimate* e, TrackResult* r) {
   double t = now_ms();
-  r->local_map = select_local_map(T_predicted, true);
+  r->local_map = local_map_.select(map_, T_predicted, &raster_);
   float radius = first_radius_px;
   if (match_local_map(radius) < 2 * config_.min_inliers && config_.wide_radius_px > radius)
     match_local_map(radius = config_.wide_radius_px);
@@ -438,9 +249,9 @@ bool TrackerImpl::track_from(const SE3& T_predicted, float first_radius_px, Pose
   if (!solved) return false;
   const double moved_px = image_shift_px(T_predicted, T);
   if (moved_px > static_cast<double>(config_.wide_radius_px)) {
-    select_local_map(T, true);  // the view moved far: the predicted selection no longer fits
+    local_map_.select(map_, T, &raster_);  // the view moved far: the predicted selection no longer fits
   } else {
-    reproject_local_map(T);
+    local_map_.reproject(map_, T);
   }
   match_local_map(moved_px > static_cast<double>(config_.refine_radius_px) ? config_.search_radius_px
                                                                           : config_.refine_radius_px);
@@ -497,21 +308,6 @@ void TrackerImpl::measure_final(PoseEstimate* e) {
   e->spread_cells = std::popcount(cells);
 }
 
-QualityGates TrackerImpl::gates(bool strict) const {
-  QualityGates g;
-  g.min_inliers = config_.min_inliers;
-  g.min_inlier_ratio = config_.min_inlier_ratio;
-  g.max_rms_px = config_.max_rms_px;
-  g.min_mask_agreement = config_.min_mask_agreement;
-  if (strict) {
-    g.min_inliers = static_cast<int>(std::ceil(config_.min_inliers * config_.strict_inlier_factor));
-    g.max_rms_px = 0.8 * config_.max_rms_px;
-    g.min_mask_agreement = std::max(config_.min_mask_agreement, 0.95);
-    g.min_spread_cells = config_.min_spread_cells;
-  }
-  return g;
-}
-
 // Of this frame's inliers, the share that are anchored map points.
 double TrackerImpl::anchored_share() const {
   int n = 0, anchored = 0;
@@ -521,20 +317,6 @@ double TrackerImpl::anchored_share() const {
       anchored += map_.point(corr_point_[static_cast<std::size_t>(i)]).anchored ? 1 : 0;
     }
   return n > 0 ? static_cast<double>(anchored) / n : 0.0;
-}
-
-// The normal gates with the inlier ratio's lowered to
-// confirmed_min_inlier_ratio: a pose that direct alignment must confirm.
-QualityGates TrackerImpl::confirm_gates() const {
-  QualityGates g = gates(false);
-  g.min_inlier_ratio = std::min(g.min_inlier_ratio, config_.confirmed_min_inlier_ratio);
-  return g;
-}
-
-bool TrackerImpl::passes(const PoseEstimate& e, const QualityGates& g) const {
-  return e.solved && e.T_camera_model.all_finite() && e.inliers >= g.min_inliers &&
-         e.inlier_ratio() >= g.min_inlier_ratio && e.whitened_rms <= g.max_rms_px &&
-         e.mask_agreement >= g.min_mask_agreement && e.spread_cells >= g.min_spread_cells;
 }
 
 TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
@@ -552,8 +334,8 @@ TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
     r.pose_jump_deg = pose_delta(T_predicted, e.T_camera_model).angle_deg;
     r.pose_jump_mm = (camera_centre(T_predicted) - camera_centre(e.T_camera_model)).norm();
     const bool plausible = r.pose_jump_deg <= config_.max_jump_deg && r.pose_jump_mm <= config_.max_jump_mm;
-    ok = plausible && passes(e, gates(strict_frames_left_ > 0));
-    if (!ok && plausible && strict_frames_left_ == 0 && passes(e, confirm_gates())) {
+    ok = plausible && PoseGates::passes(e, strict_frames_left_ > 0 ? gates_.strict() : gates_.normal());
+    if (!ok && plausible && strict_frames_left_ == 0 && PoseGates::passes(e, gates_.confirm())) {
       const double agreement_px = anchor_agreement_px(T_predicted, e.T_camera_model);
       ok = agreement_px <= config_.confirm_agreement_px;
       r.confirmed_by_alignment = ok;
@@ -570,7 +352,7 @@ TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
     T_dead_reckoned_ = T_predicted;  // this frame's best guess (image motion included)
     // Measured from the last tracked frame where the organ allows.
     if (dead_reckon(&T_dead_reckoned_, velocity_ * T_last_)) lost_velocity_ = T_dead_reckoned_ * T_last_.inverse();
-    reloc_order_count_ = 0;  // ranked at the first relocalisation attempt
+    reloc_keyframes_.forget_ranking();  // ranked at the first relocalisation attempt
     velocity_ = SE3();
   }
   return r;
