@@ -9,7 +9,7 @@
 namespace st::app {
 
 namespace {
-constexpr double kUnboundedSolveS = 1e6;  // a Ceres time limit that never binds
+constexpr double kUnboundedSolveS = 1e6;  // a solver time limit that never binds
 }  // namespace
 
 Status MappingWorker::configure(const TrackerConfig& config, const Mesh& mesh, const Pinhole& K) {
@@ -17,13 +17,15 @@ Status MappingWorker::configure(const TrackerConfig& config, const Mesh& mesh, c
   configured_ = false;
   config_ = config;
   BundleAdjusterOptions o = config.ba;
+  o.now_ns = platform::monotonic_ns;  // the Schur solver's time limit and solver_ms
   if (config.ba_lag_frames > 0) {  // deterministic: iterations only (the solves' time limits vary with the machine)
     o.max_time_s = kUnboundedSolveS;
     config_.ba_global_max_time_s = kUnboundedSolveS;
   }
   if (Status s = job_.configure(config.max_keyframes, config.max_map_points, config.ba_max_observations); !s.ok())
     return make_error("mapping: " + s.message());
-  if (Status s = adjuster_.configure(o, mesh, K, config.max_map_points, config.ba_max_observations); !s.ok())
+  if (Status s = adjuster_.configure(o, mesh, K, config.max_keyframes, config.max_map_points,
+                                           config.ba_max_observations); !s.ok())
     return make_error("mapping: " + s.message());
   state_.store(kFree, std::memory_order_release);
   stats_ = MappingStats{};

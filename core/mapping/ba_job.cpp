@@ -20,6 +20,22 @@ SE3 pose_from_params(const double* params) {
   return SE3(Quat(params[3], params[0], params[1], params[2]), Vec3(params[4], params[5], params[6]));
 }
 
+const char* ba_refusal_text(BaRefusal refusal) {
+  switch (refusal) {
+    case BaRefusal::kNone: return "not refused";
+    case BaRefusal::kNotConfigured: return "bundle adjustment: configure() the adjuster before solving";
+    case BaRefusal::kEmpty: return "bundle adjustment: the job has no keyframe or no point";
+    case BaRefusal::kTooBig:
+      return "bundle adjustment: the job has more keyframes, points or observations than configured "
+             "(raise the adjuster's maxima to the job buffer's capacities)";
+    case BaRefusal::kBadIndex: return "bundle adjustment: an observation names a keyframe or point out of range";
+    case BaRefusal::kNotFinite: return "bundle adjustment: a pose, point, pixel or information is NaN or infinite";
+    case BaRefusal::kBadPrior: return "bundle adjustment: the pose prior's keyframe, pose or sigmas are not usable";
+    case BaRefusal::kNothingToSolve: return "bundle adjustment: no observation passes the caps and the depth test";
+  }
+  return "bundle adjustment: unknown refusal";
+}
+
 Status BaJob::configure(int max_keyframes, int max_points, int max_observations) {
   if (max_keyframes < 1 || max_points < 1 || max_observations < 1)
     return make_error("BA job: capacities must be >= 1 (got " + std::to_string(max_keyframes) + " keyframes, " +

@@ -62,15 +62,30 @@ struct BaPosePrior {
 // Both sigmas finite and > 0 (BaJob::set_prior and BundleAdjuster's job check).
 bool pose_prior_sigmas_usable(double sigma_rad, double sigma_mm);
 
+// Why BundleAdjuster::solve refused a job before solving (BaSummary::refusal).
+enum class BaRefusal : std::uint8_t {
+  kNone,           // not refused
+  kNotConfigured,  // the adjuster has not been configured
+  kEmpty,          // no keyframe or no point
+  kTooBig,         // more keyframes, points or observations than the adjuster was configured for
+  kBadIndex,       // an observation's keyframe or point index out of range
+  kNotFinite,      // a NaN or infinite pose, point, pixel or information
+  kBadPrior,       // the pose prior's keyframe, pose or sigmas are not usable
+  kNothingToSolve, // no observation passes the caps and the depth test
+};
+// One line an engineer can act on (static text: allocates nothing).
+const char* ba_refusal_text(BaRefusal refusal);
+
 struct BaSummary {
   bool usable = false;         // solved, finite: the tracker may apply it
+  BaRefusal refusal = BaRefusal::kNone;
   int keyframes = 0, fixed_keyframes = 0, points = 0, observations = 0;
   int fixed_observations = 0;  // of observations: from fixed keyframes
   int plane_queries = 0;       // closest-point queries for tangent planes (the rest reused)
   int points_skipped = 0;      // observed, but fewer times than min_observations_per_point: left unchanged
   int iterations = 0;
   double initial_cost = 0, final_cost = 0;
-  double solver_ms = 0;        // Ceres' own measure of the solve
+  double solver_ms = 0;        // the solver's own measure of the solve (0 without a clock)
   int points_rejected = 0;     // moved farther than the options allow: not applied
   bool prior_tested = false;   // the job's prior was tested (see BundleAdjusterOptions)
   bool prior_used = false;     // ... and the freed solution kept (the prior's keyframe moved)

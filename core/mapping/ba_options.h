@@ -3,9 +3,22 @@
 // without its headers.
 #pragma once
 
+#include <cstdint>
+
 namespace st {
 
+// Which solver BundleAdjuster runs: its own Schur-complement LM
+// (core/mapping/schur_solver.h, the product path: allocates nothing per
+// solve) or the Ceres form it replaced, kept as the reference for tests
+// and the bench (allocates inside Ceres). Not a settings key.
+enum class BaSolverForm : std::uint8_t { kSchur, kCeres };
+
 struct BundleAdjusterOptions {
+  BaSolverForm solver = BaSolverForm::kSchur;
+  // The clock behind max_time_s and BaSummary::solver_ms for the Schur
+  // solver (core/ has none: the caller injects it); nullptr: iterations
+  // alone bound a solve. Ceres uses its own clock. Not a settings key.
+  std::int64_t (*now_ns)() = nullptr;
   double w_shape = 100.0;           // paper: 100; 0 drops the shape residual (ablation)
   double shape_huber_mm = 1.0;      // Huber threshold of the point-to-mesh distance
   bool exact_shape = false;         // true: D(f) re-queried at every evaluation; false: tangent
@@ -14,7 +27,7 @@ struct BundleAdjusterOptions {
   int max_iterations = 10;
   double relative_gradient_tolerance = 1e-4;  // stop once max|gradient| fell below this fraction of
                                               // its start value (0: Ceres' own tests only)
-  double max_time_s = 0.05;         // Ceres stops after this much solver time
+  double max_time_s = 0.05;         // the solver stops after this much time (see now_ns)
   double min_depth_mm = 1.0;        // observations at a smaller depth are left out
   double max_point_shift_mm = 10.0; // a point moved farther is marked rejected (the
                                     // tracker keeps its old position)

@@ -197,41 +197,74 @@ struct BundleAdjuster::Impl {
   std::unique_ptr<ShapeCost[]> shape_costs;
   std::unique_ptr<PlaneCost[]> plane_costs;
   PosePriorCost prior_cost;                  // the job's pose prior (at most one)
-  std::unique_ptr<PoseCache[]> pose_caches;  // per job keyframe, kMaxKeyframes
-  std::unique_ptr<double[]> deltas;          // 6 per job keyframe: the pose blocks Ceres solves
+  std::unique_ptr<PoseCache[]> pose_caches;  // per job keyframe
   std::unique_ptr<RelativeGradientStop> gradient_stop;
   ceres::Problem::Options problem_options;
   ceres::Solver::Options solver_options;
   ceres::Problem* problem = nullptr;  // during solve() only
-  double focal_scale[1] = {1.0};      // the focal test's block (FocalTest::kFree)
 };
 
 BundleAdjuster::BundleAdjuster() = default;
 BundleAdjuster::~BundleAdjuster() = default;
 
+namespace {
+
+bool options_in_range(const BundleAdjusterOptions& o) {
+  return o.w_shape >= 0 && std::isfinite(o.w_shape) && o.shape_huber_mm > 0 && o.reprojection_huber > 0 &&
+         o.max_iterations >= 1 && o.max_time_s > 0 && o.min_depth_mm > 0 && o.max_point_shift_mm > 0 &&
+         o.surface_distance_samples >= 0 && o.max_observations_per_point >= 0 &&
+         o.relative_gradient_tolerance >= 0 && o.relative_gradient_tolerance < 1 &&
+         o.max_observations_per_point <= kMaxObservationsPerPointCap && o.max_fixed_observations_per_point >= 0 &&
+         o.max_fixed_observations_per_point <= kMaxObservationsPerPointCap && o.min_observations_per_point >= 1 &&
+         o.min_observations_per_point <= 255 && o.plane_reuse_mm >= 0 && o.prior_release_f >= 0 &&
+         std::isfinite(o.prior_release_f);
+}
+
+}  // namespace
+
 Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mesh& mesh, const Pinhole& K,
-                                 int max_points, int max_observations) {
+                                 int max_keyframes, int max_points, int max_observations) {
   configured_ = false;
-  if (!(options.w_shape >= 0) || !std::isfinite(options.w_shape) || !(options.shape_huber_mm > 0) ||
-      !(options.reprojection_huber > 0) || options.max_iterations < 1 ||
-      !(options.max_time_s > 0) || !(options.min_depth_mm > 0) ||
-      !(options.max_point_shift_mm > 0) || options.surface_distance_samples < 0 ||
-      options.max_observations_per_point < 0 || !(options.relative_gradient_tolerance >= 0) ||
-      !(options.relative_gradient_tolerance < 1) ||
-      options.max_observations_per_point > kMaxObservationsPerPointCap ||
-      options.max_fixed_observations_per_point < 0 ||
-      options.max_fixed_observations_per_point > kMaxObservationsPerPointCap ||
-      options.min_observations_per_point < 1 || options.min_observations_per_point > 255 ||
-      !(options.plane_reuse_mm >= 0) || !(options.prior_release_f >= 0) ||
-      !std::isfinite(options.prior_release_f))
+  if (!options_in_range(options))
     return make_error("bundle adjustment: options out of range (w_shape >= 0, thresholds and limits > 0)");
   if (!pinhole_is_usable(K)) return make_error("bundle adjustment: the pinhole is not usable");
-  if (max_points < 1 || max_points > kMaxMapPoints || max_observations < 1)
-    return make_error("bundle adjustment: capacities out of range (" + std::to_string(max_points) + " points, " +
-                      std::to_string(max_observations) + " observations)");
+  if (max_keyframes < 1 || max_keyframes > kMaxKeyframes || max_points < 1 || max_points > kMaxMapPoints ||
+      max_observations < 1)
+    return make_error("bundle adjustment: capacities out of range (" + std::to_string(max_keyframes) + " keyframes, " +
+                      std::to_string(max_points) + " points, " + std::to_string(max_observations) +
+                      " observations)");
   if (Status s = surface_.configure(mesh); !s.ok()) return make_error("bundle adjustment: " + s.message());
   options_ = options;
   K_ = K;
+  const auto nk = static_cast<std::size_t>(max_keyframes), np = static_cast<std::size_t>(max_points);
+  planes_.assign(np, ShapePlane{});
+  plane_cache_.assign(np, CachedPlane{});
+  point_observed_.assign(np, 0);
+  shape_used_.assign(np, 0);
+  observation_used_.assign(static_cast<std::size_t>(max_observations), 0);
+  held_.assign(nk, 0);
+  T0_.assign(nk, SE3());
+  deltas_.assign(nk * 6, 0.0);
+  saved_poses_.assign(nk * kPoseParams, 0.0);
+  saved_points_.assign(np * 3, 0.0);
+  newest_frames_.assign(np * static_cast<std::size_t>(std::max(1, options.max_observations_per_point)), -1);
+  newest_fixed_frames_.assign(np * static_cast<std::size_t>(std::max(1, options.max_fixed_observations_per_point)), -1);
+  impl_.reset();
+  if (options.solver == BaSolverForm::kCeres) {
+    configure_ceres(max_keyframes, max_points, max_observations);
+  } else if (Status s = schur_.configure(max_keyframes, max_points, max_observations); !s.ok()) {
+    return make_error("bundle adjustment: " + s.message());
+  }
+  max_keyframes_ = max_keyframes;
+  max_points_ = max_points;
+  max_observations_ = max_observations;
+  configured_ = true;
+  return Status::Ok();
+}
+
+// The Ceres form's pools and options (BaSolverForm::kCeres only).
+void BundleAdjuster::configure_ceres(int max_keyframes, int max_points, int max_observations) {
+  const BundleAdjusterOptions& options = options_;
   impl_ = std::make_unique<Impl>();
   impl_->reprojection_loss = std::make_unique<ceres::HuberLoss>(options.reprojection_huber);
   // The residual is sqrt(w_shape) * distance: the threshold in its units.
@@ -239,27 +272,15 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   impl_->reprojection_costs = std::make_unique<ReprojectionCost[]>(static_cast<std::size_t>(max_observations));
   impl_->shape_costs = std::make_unique<ShapeCost[]>(static_cast<std::size_t>(max_points));
   impl_->plane_costs = std::make_unique<PlaneCost[]>(static_cast<std::size_t>(max_points));
-  impl_->pose_caches = std::make_unique<PoseCache[]>(static_cast<std::size_t>(kMaxKeyframes));
-  impl_->deltas = std::make_unique<double[]>(static_cast<std::size_t>(kMaxKeyframes) * 6);
-  planes_.assign(static_cast<std::size_t>(max_points), ShapePlane{});
-  plane_cache_.assign(static_cast<std::size_t>(max_points), CachedPlane{});
+  impl_->pose_caches = std::make_unique<PoseCache[]>(static_cast<std::size_t>(max_keyframes));
   for (int i = 0; i < max_points; ++i) {
     impl_->shape_costs[static_cast<std::size_t>(i)].set(&surface_, options.w_shape);
     impl_->plane_costs[static_cast<std::size_t>(i)].set(&planes_[static_cast<std::size_t>(i)], options.w_shape);
   }
-  max_points_ = max_points;
-  max_observations_ = max_observations;
-  point_observed_.assign(static_cast<std::size_t>(max_points), 0);
-  held_.assign(static_cast<std::size_t>(kMaxKeyframes), 0);
-  saved_poses_.assign(static_cast<std::size_t>(kMaxKeyframes) * kPoseParams, 0.0);
-  saved_points_.assign(static_cast<std::size_t>(max_points) * 3, 0.0);
-  newest_frames_.assign(static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_observations_per_point)), -1);
-  newest_fixed_frames_.assign(
-      static_cast<std::size_t>(max_points) * static_cast<std::size_t>(std::max(1, options.max_fixed_observations_per_point)), -1);
   ceres::Problem::Options& po = impl_->problem_options;
   po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  po.disable_all_safety_checks = true;  // valid() checked the job; saves ~1/3 of the build
+  po.disable_all_safety_checks = true;  // check() vetted the job; saves ~1/3 of the build
   ceres::Solver::Options& so = impl_->solver_options;
   so.linear_solver_type = ceres::DENSE_SCHUR;
   so.num_threads = 1;
@@ -272,41 +293,44 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
     impl_->gradient_stop = std::make_unique<RelativeGradientStop>(options.relative_gradient_tolerance);
     so.callbacks.push_back(impl_->gradient_stop.get());
   }
-  configured_ = true;
-  return Status::Ok();
 }
 
-// Indices in range, values finite, counts within the pools.
-bool BundleAdjuster::valid(const BaJob& job) const {
-  if (job.point_count > max_points_ || job.observation_count > max_observations_ || job.keyframe_count < 1 ||
-      job.keyframe_count > kMaxKeyframes ||
-      job.point_count < 1)
-    return false;
+// Counts within the maxima, indices in range, values finite.
+BaRefusal BundleAdjuster::check(const BaJob& job) const {
+  if (!configured_) return BaRefusal::kNotConfigured;
+  if (job.keyframe_count < 1 || job.point_count < 1) return BaRefusal::kEmpty;
+  if (job.keyframe_count > max_keyframes_ || job.point_count > max_points_ ||
+      job.observation_count > max_observations_ || job.observation_count < 0)
+    return BaRefusal::kTooBig;
   for (int i = 0; i < job.keyframe_count; ++i)
-    if (!job.pose(i).all_finite()) return false;
+    if (!job.pose(i).all_finite()) return BaRefusal::kNotFinite;
   for (int i = 0; i < job.point_count; ++i)
-    if (!job.point(i).allFinite()) return false;
+    if (!job.point(i).allFinite()) return BaRefusal::kNotFinite;
   for (int i = 0; i < job.observation_count; ++i) {
     const BaObservation& o = job.observations[static_cast<std::size_t>(i)];
-    if (o.keyframe < 0 || o.keyframe >= job.keyframe_count || o.point < 0 || o.point >= job.point_count ||
-        !std::isfinite(o.x_ideal) || !std::isfinite(o.y_ideal) || !(o.info > 0) || !std::isfinite(o.info))
-      return false;
+    if (o.keyframe < 0 || o.keyframe >= job.keyframe_count || o.point < 0 || o.point >= job.point_count)
+      return BaRefusal::kBadIndex;
+    if (!std::isfinite(o.x_ideal) || !std::isfinite(o.y_ideal) || !(o.info > 0) || !std::isfinite(o.info))
+      return BaRefusal::kNotFinite;
   }
   const BaPosePrior& prior = job.prior;
-  if (prior.keyframe >= job.keyframe_count || !pose_from_params(prior.pose).all_finite())
-    return false;
-  return prior.keyframe < 0 || pose_prior_sigmas_usable(prior.sigma_rad, prior.sigma_mm);
+  if (prior.keyframe >= job.keyframe_count || !pose_from_params(prior.pose).all_finite() ||
+      (prior.keyframe >= 0 && !pose_prior_sigmas_usable(prior.sigma_rad, prior.sigma_mm)))
+    return BaRefusal::kBadPrior;
+  return BaRefusal::kNone;
 }
 
-// Adds every block and residual to impl_->problem; returns the number of
-// reprojection residuals.
-int BundleAdjuster::build(BaJob* job, bool free_prior, FocalTest focal) {
-  const bool focal_test = focal != FocalTest::kNone, free_focal = focal == FocalTest::kFree;
-  ceres::Problem& problem = *impl_->problem;
+// What joins this solve, for either solver: the held keyframes (fixed,
+// the prior's while it is tested, the gauge), whether the prior residual
+// is on, the points (select_points), the observations and the shape
+// residuals. Returns the number of reprojection residuals.
+int BundleAdjuster::select(BaJob* job, bool free_prior, FocalTest focal) {
+  const bool focal_test = focal != FocalTest::kNone;
+  focal_ = focal;
   int fixed = 0, oldest = 0;
   for (int i = 0; i < job->keyframe_count; ++i) {
     const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
-    impl_->pose_caches[static_cast<std::size_t>(i)].reset(job->pose(i));
+    T0_[static_cast<std::size_t>(i)] = job->pose(i);
     std::fill(pose_delta_block(i), pose_delta_block(i) + 6, 0.0);
     const bool hold = k.fixed && !focal_test;
     held_[static_cast<std::size_t>(i)] = hold ? 1 : 0;
@@ -325,22 +349,14 @@ int BundleAdjuster::build(BaJob* job, bool free_prior, FocalTest focal) {
   // the focal length in one (held, a 2 deg / 4 mm registration looked like
   // focal lengths 6 % short at F 195).
   const int prior_kf = focal_test ? -1 : job->prior.keyframe;
-  const bool use_prior = free_prior && prior_kf >= 0 && !held_[static_cast<std::size_t>(prior_kf)];
+  use_prior_ = free_prior && prior_kf >= 0 && !held_[static_cast<std::size_t>(prior_kf)];
   if (prior_kf >= 0 && !free_prior && !held_[static_cast<std::size_t>(prior_kf)]) {
     held_[static_cast<std::size_t>(prior_kf)] = 1;
     ++fixed;
   }
-  if (fixed == 0 && !use_prior && !focal_test) {  // gauge: hold the oldest keyframe
+  if (fixed == 0 && !use_prior_ && !focal_test) {  // gauge: hold the oldest keyframe
     held_[static_cast<std::size_t>(oldest)] = 1;
     fixed = 1;
-  }
-  // Held poses stay out of the problem (their residuals take the point only).
-  for (int i = 0; i < job->keyframe_count; ++i)
-    if (!held_[static_cast<std::size_t>(i)]) problem.AddParameterBlock(pose_delta_block(i), 6);
-  if (use_prior) {
-    impl_->prior_cost.set(job->pose(prior_kf), pose_from_params(job->prior.pose),
-                          job->prior.sigma_rad, job->prior.sigma_mm);
-    problem.AddResidualBlock(&impl_->prior_cost, nullptr, pose_delta_block(prior_kf));
   }
   job->summary.fixed_keyframes = fixed;
   if (options_.max_observations_per_point > 0)
@@ -348,30 +364,96 @@ int BundleAdjuster::build(BaJob* job, bool free_prior, FocalTest focal) {
   if (options_.max_fixed_observations_per_point > 0)
     newest_frames_per_point(*job, options_.max_fixed_observations_per_point, true, &newest_fixed_frames_);
   select_points(job);
-  if (free_focal) {
-    impl_->focal_scale[0] = 1.0;
-    problem.AddParameterBlock(impl_->focal_scale, 1);
-  }
   int used = 0;
   for (int i = 0; i < job->observation_count; ++i) {
     const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
-    if (!point_observed_[static_cast<std::size_t>(o.point)] || !usable_observation(*job, o)) continue;
+    const bool use = point_observed_[static_cast<std::size_t>(o.point)] && usable_observation(*job, o);
+    observation_used_[static_cast<std::size_t>(i)] = use ? 1 : 0;
+    if (!use) continue;
+    ++used;
+    if (job->keyframes[static_cast<std::size_t>(o.keyframe)].fixed) ++job->summary.fixed_observations;
+  }
+  select_shapes(job);
+  return used;
+}
+
+// Adds this solve's blocks and residuals (select()) to impl_->problem.
+void BundleAdjuster::build_ceres(BaJob* job) {
+  ceres::Problem& problem = *impl_->problem;
+  const bool free_focal = focal_ == FocalTest::kFree;
+  for (int i = 0; i < job->keyframe_count; ++i) {
+    impl_->pose_caches[static_cast<std::size_t>(i)].reset(T0_[static_cast<std::size_t>(i)]);
+    // Held poses stay out of the problem (their residuals take the point only).
+    if (!held_[static_cast<std::size_t>(i)]) problem.AddParameterBlock(pose_delta_block(i), 6);
+  }
+  if (use_prior_) {
+    const int prior_kf = job->prior.keyframe;
+    impl_->prior_cost.set(job->pose(prior_kf), pose_from_params(job->prior.pose), job->prior.sigma_rad,
+                          job->prior.sigma_mm);
+    problem.AddResidualBlock(&impl_->prior_cost, nullptr, pose_delta_block(prior_kf));
+  }
+  if (free_focal) {
+    focal_scale_[0] = 1.0;
+    problem.AddParameterBlock(focal_scale_, 1);
+  }
+  int used = 0;
+  for (int i = 0; i < job->observation_count; ++i) {
+    if (!observation_used_[static_cast<std::size_t>(i)]) continue;
+    const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
     ReprojectionCost& c = impl_->reprojection_costs[static_cast<std::size_t>(used++)];
     const bool held = held_[static_cast<std::size_t>(o.keyframe)] != 0;
     c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm,
           &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)], held, free_focal);
-    double* point = job->points[static_cast<std::size_t>(o.point)].p_model;
     // The residual's blocks: [pose,] point[, focal scale] (ReprojectionCost::set).
     double* blocks[3];
     int n_blocks = 0;
     if (!held) blocks[n_blocks++] = pose_delta_block(o.keyframe);
-    blocks[n_blocks++] = point;
-    if (free_focal) blocks[n_blocks++] = impl_->focal_scale;
+    blocks[n_blocks++] = job->points[static_cast<std::size_t>(o.point)].p_model;
+    if (free_focal) blocks[n_blocks++] = focal_scale_;
     problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), blocks, n_blocks);
-    if (job->keyframes[static_cast<std::size_t>(o.keyframe)].fixed) ++job->summary.fixed_observations;
   }
-  if (options_.w_shape > 0) add_shape_residuals(job);
-  return used;
+  for (int i = 0; i < job->point_count; ++i) {
+    const auto is = static_cast<std::size_t>(i);
+    if (!shape_used_[is]) continue;
+    double* f = job->points[is].p_model;
+    if (options_.exact_shape)
+      problem.AddResidualBlock(&impl_->shape_costs[is], impl_->shape_loss.get(), f);
+    else
+      problem.AddResidualBlock(&impl_->plane_costs[is], impl_->shape_loss.get(), f);
+  }
+}
+
+// Hands this solve (select()) to the Schur solver; false when it refuses.
+bool BundleAdjuster::load_schur(const BaJob& job) {
+  SchurResidualConfig r;
+  r.K = K_;
+  r.min_depth_mm = options_.min_depth_mm;
+  r.reprojection_huber = options_.reprojection_huber;
+  r.sqrt_w_shape = std::sqrt(options_.w_shape);
+  r.shape_huber = r.sqrt_w_shape * options_.shape_huber_mm;
+  r.surface = &surface_;
+  if (!schur_.begin(r, job.keyframe_count, job.point_count, focal_ == FocalTest::kFree)) return false;
+  for (int i = 0; i < job.keyframe_count; ++i)
+    schur_.set_keyframe(i, T0_[static_cast<std::size_t>(i)], held_[static_cast<std::size_t>(i)] != 0);
+  using Shape = SchurSolver::ShapeKind;
+  const Shape shape = options_.exact_shape ? Shape::kExact : Shape::kPlane;
+  for (int i = 0; i < job.point_count; ++i) {
+    const auto is = static_cast<std::size_t>(i);
+    schur_.set_point(i, job.points[is].p_model, point_observed_[is] != 0, shape_used_[is] ? shape : Shape::kNone,
+                     planes_[is]);
+  }
+  for (int i = 0; i < job.observation_count; ++i) {
+    if (!observation_used_[static_cast<std::size_t>(i)]) continue;
+    const BaObservation& o = job.observations[static_cast<std::size_t>(i)];
+    if (!schur_.add_observation(o.keyframe, o.point, Vec2(o.x_ideal, o.y_ideal), o.info)) return false;
+  }
+  if (use_prior_) {
+    const int k = job.prior.keyframe;
+    Vec6 w;
+    w << Vec3::Constant(1.0 / job.prior.sigma_rad), Vec3::Constant(1.0 / job.prior.sigma_mm);
+    schur_.set_prior(k, (job.pose(k) * pose_from_params(job.prior.pose).inverse()).log(), w);
+  }
+  return true;
 }
 
 // point_observed_[i] = 1 for the points that join the problem: at least
@@ -412,10 +494,10 @@ void BundleAdjuster::newest_frames_per_point(const BaJob& job, int cap, bool fix
   }
 }
 
-// Passes the caps and is in front of its keyframe (Ceres needs a valid start).
+// Passes the caps and is in front of its keyframe (the solvers need a valid start).
 bool BundleAdjuster::usable_observation(const BaJob& job, const BaObservation& o) const {
   if (!keep_observation(job, o)) return false;
-  const Vec3 p_camera = impl_->pose_caches[static_cast<std::size_t>(o.keyframe)].T0() * job.point(o.point);
+  const Vec3 p_camera = T0_[static_cast<std::size_t>(o.keyframe)] * job.point(o.point);
   return p_camera.z() > options_.min_depth_mm;
 }
 
@@ -433,17 +515,15 @@ bool BundleAdjuster::keep_observation(const BaJob& job, const BaObservation& o) 
   return true;
 }
 
-void BundleAdjuster::add_shape_residuals(BaJob* job) {
-  ceres::Problem& problem = *impl_->problem;
+// shape_used_[i] = 1 for the points of the problem that get a shape
+// residual: all of them in the exact form, those with a tangent plane in
+// the plane form (planes_).
+void BundleAdjuster::select_shapes(BaJob* job) {
   for (int i = 0; i < job->point_count; ++i) {
     const auto is = static_cast<std::size_t>(i);
-    if (!point_observed_[is]) continue;
-    double* f = job->points[is].p_model;
-    if (options_.exact_shape) {
-      problem.AddResidualBlock(&impl_->shape_costs[is], impl_->shape_loss.get(), f);
-    } else if (plane_for(job->points[is], &planes_[is], &job->summary.plane_queries)) {
-      problem.AddResidualBlock(&impl_->plane_costs[is], impl_->shape_loss.get(), f);
-    }
+    bool use = options_.w_shape > 0 && point_observed_[is];
+    if (use && !options_.exact_shape) use = plane_for(job->points[is], &planes_[is], &job->summary.plane_queries);
+    shape_used_[is] = use ? 1 : 0;
   }
 }
 
@@ -488,41 +568,88 @@ static std::shared_ptr<ceres::ParameterBlockOrdering> schur_ordering(BaJob* job,
 bool BundleAdjuster::solve_once(BaJob* job, bool free_prior, int max_iterations, double max_time_s,
                                 SolveStats* stats, FocalTest focal) {
   job->summary = BaSummary{};
-  ceres::Problem problem(impl_->problem_options);
-  impl_->problem = &problem;
-  const int used = build(job, free_prior, focal);
-  impl_->problem = nullptr;
+  const int used = select(job, free_prior, focal);
   job->summary.keyframes = job->keyframe_count;
   job->summary.points = job->point_count;
   job->summary.observations = used;
-  if (used == 0) return false;
+  if (used == 0) {
+    job->summary.refusal = BaRefusal::kNothingToSolve;
+    return false;
+  }
+  const SolverRun run = impl_ ? run_ceres(job, max_iterations, max_time_s) : run_schur(job, max_iterations, max_time_s);
+  apply_pose_deltas(job);
+  finish(job, run.initial_cost, run.final_cost, run.total_s, run.iterations, run.usable);
+  if (stats) *stats = run.stats;
+  return job->summary.usable;
+}
+
+// The Ceres form: a Problem built, solved and torn down (allocates).
+BundleAdjuster::SolverRun BundleAdjuster::run_ceres(BaJob* job, int max_iterations, double max_time_s) {
+  ceres::Problem problem(impl_->problem_options);
+  impl_->problem = &problem;
+  build_ceres(job);
+  impl_->problem = nullptr;
   ceres::Solver::Options so = impl_->solver_options;
-  so.linear_solver_ordering = schur_ordering(job, point_observed_, held_, impl_->deltas.get());
-  if (focal == FocalTest::kFree) so.linear_solver_ordering->AddElementToGroup(impl_->focal_scale, 1);
+  so.linear_solver_ordering = schur_ordering(job, point_observed_, held_, deltas_.data());
+  if (focal_ == FocalTest::kFree) so.linear_solver_ordering->AddElementToGroup(focal_scale_, 1);
   if (max_iterations > 0) so.max_num_iterations = max_iterations;
   if (max_time_s > 0) so.max_solver_time_in_seconds = max_time_s;
   ceres::Solver::Summary s;
   ceres::Solve(so, &problem, &s);
-  apply_pose_deltas(job);
-  finish(job, s.initial_cost, s.final_cost, s.total_time_in_seconds, static_cast<int>(s.iterations.size()),
-         s.IsSolutionUsable());
-  if (stats) {
-    stats->residuals = s.num_residuals;
-    stats->parameters = s.num_effective_parameters;
+  SolverRun run;
+  run.initial_cost = s.initial_cost;
+  run.final_cost = s.final_cost;
+  run.total_s = s.total_time_in_seconds;
+  run.iterations = static_cast<int>(s.iterations.size());
+  run.usable = s.IsSolutionUsable();
+  run.stats.residuals = s.num_residuals;
+  run.stats.parameters = s.num_effective_parameters;
+  return run;
+}
+
+// The Schur solver: the solution copied back into the job's points, the
+// pose deltas and the focal scale (allocates nothing).
+BundleAdjuster::SolverRun BundleAdjuster::run_schur(BaJob* job, int max_iterations, double max_time_s) {
+  SolverRun run;
+  if (!load_schur(*job)) return run;
+  SchurSolverOptions o;
+  o.max_iterations = max_iterations > 0 ? max_iterations : options_.max_iterations;
+  o.max_time_s = max_time_s > 0 ? max_time_s : options_.max_time_s;
+  o.relative_gradient_tolerance = options_.relative_gradient_tolerance;
+  o.now_ns = options_.now_ns;
+  SchurSolverSummary s;
+  schur_.solve(o, &s);
+  for (int i = 0; i < job->point_count; ++i) {
+    if (!point_observed_[static_cast<std::size_t>(i)]) continue;
+    const Vec3 p = schur_.point(i);
+    for (int c = 0; c < 3; ++c) job->points[static_cast<std::size_t>(i)].p_model[c] = p[c];
   }
-  return job->summary.usable;
+  for (int k = 0; k < job->keyframe_count; ++k) {
+    const Vec6 d = schur_.pose_delta(k);
+    for (int c = 0; c < 6; ++c) pose_delta_block(k)[c] = d[c];
+  }
+  focal_scale_[0] = schur_.focal_scale();
+  run.initial_cost = s.initial_cost;
+  run.final_cost = s.final_cost;
+  run.total_s = s.solver_ms * 1e-3;
+  run.iterations = s.iterations;
+  run.usable = s.usable;
+  run.stats.residuals = s.residuals;
+  run.stats.parameters = s.parameters;
+  return run;
 }
 
 bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
   job->summary = BaSummary{};
-  if (!configured_ || !valid(*job)) return false;
+  job->summary.refusal = check(*job);
+  if (job->summary.refusal != BaRefusal::kNone) return false;
   if (!solve_tested_prior(job, max_iterations, max_time_s)) return false;
   if (job->test_focal && options_.w_shape > 0) test_focal(job, max_iterations, max_time_s);
   return job->summary.usable;
 }
 
 // The calibration's focal test: from the solved job, two more solves with
-// the same budget and every keyframe free (see build()), one with the
+// the same budget and every keyframe free (see select()), one with the
 // focal lengths held and one with a common scale s of them free; the
 // solution itself is restored after. F = (C_held - C_free) / (C_free / dof), C their final
 // costs (one parameter more): how much better the data fits another focal
@@ -549,7 +676,7 @@ void BundleAdjuster::test_focal(BaJob* job, int max_iterations, double max_time_
   job->summary.solver_ms += solver_ms;
   job->summary.focal_tested = ok && dof > 0 && free_cost > 0;
   if (!job->summary.focal_tested) return;
-  job->summary.focal_scale = impl_->focal_scale[0];
+  job->summary.focal_scale = focal_scale_[0];
   job->summary.focal_f = std::max(0.0, held_cost - free_cost) / (free_cost / dof);
 }
 
@@ -609,7 +736,7 @@ void BundleAdjuster::restore_solution(BaJob* job) const {
 }
 
 double* BundleAdjuster::pose_delta_block(int keyframe) {
-  return &impl_->deltas[static_cast<std::size_t>(keyframe) * 6];
+  return &deltas_[static_cast<std::size_t>(keyframe) * 6];
 }
 
 // The solved poses exp(delta) * T0 back into the job's quaternion blocks.

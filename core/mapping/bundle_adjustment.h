@@ -1,5 +1,5 @@
-// Bounded bundle adjustment of a BaJob (core/mapping/ba_job.h) on a ceres::Problem:
-// robust reprojection residuals (Huber on octave-whitened pixels) for every
+// Bounded bundle adjustment of a BaJob (core/mapping/ba_job.h): robust
+// reprojection residuals (Huber on octave-whitened pixels) for every
 // observation, plus the paper's shape residual w_shape * rho(|f - D(f)|)
 // (Huber in mm) for every point, D from ClosestPointIndex (as a tangent
 // plane taken at the start value, reused across solves while the point
@@ -7,19 +7,22 @@
 // information). Keyframe poses are 6-dim left deltas around the handed-over
 // pose (core/mapping/ba_residuals.h); keyframes flagged fixed are held constant
 // (when a job has none, the oldest keyframe is fixed to remove the gauge
-// freedom left when w_shape = 0): a held pose is no parameter block, its
+// freedom left when w_shape = 0): a held pose is no parameter, its
 // residuals take the point alone. A job may put a prior on one keyframe's
 // pose (the tracker: the registration of frame 0); that keyframe is then
 // freed only where the data says the prior is off (prior_release_f).
-// Single-threaded, dense Schur complement (a window has few poses and many
-// points), bounded iterations and solver time, and a stop once the gradient
-// has fallen to a fraction of its start.
+// Single-threaded, bounded iterations and solver time, and a stop once the
+// gradient has fallen to a fraction of its start.
 //
-// Memory: the cost-function objects are pooled (sized in configure()) and
-// not owned by the Problem; Ceres itself allocates its Problem, Program and
-// linear-solver workspace on every solve, bounded by the job's size (the
-// bench and tests measure the count). Thread: the mapping thread (one
-// BundleAdjuster per thread; the closest-point index is read-only).
+// Two solvers minimise the same problem (BundleAdjusterOptions::solver):
+// - kSchur (the product path): core/mapping/schur_solver.h, every
+//   workspace sized in configure(); solve() allocates nothing.
+// - kCeres (the reference for tests and the bench): a ceres::Problem built
+//   and torn down per solve (dense Schur); the cost-function objects are
+//   pooled, but Ceres allocates its Problem, Program and linear-solver
+//   workspace on every solve, bounded by the job's size.
+// Thread: the mapping thread (one BundleAdjuster per thread; the
+// closest-point index is read-only).
 #pragma once
 
 #include <cstdint>
@@ -29,6 +32,7 @@
 #include "core/mapping/ba_job.h"
 #include "core/mapping/ba_options.h"
 #include "core/mapping/ba_residuals.h"
+#include "core/mapping/schur_solver.h"
 #include "core/geometry/camera.h"
 #include "core/mesh/closest_point.h"
 #include "core/mesh/mesh.h"
@@ -43,15 +47,19 @@ class BundleAdjuster {
   BundleAdjuster(const BundleAdjuster&) = delete;
   BundleAdjuster& operator=(const BundleAdjuster&) = delete;
 
-  // Builds the closest-point index of the mesh and the cost-function pools
-  // for jobs of up to max_points / max_observations (allocates).
-  Status configure(const BundleAdjusterOptions& options, const Mesh& mesh, const Pinhole& K, int max_points,
-                   int max_observations);
+  // Builds the closest-point index of the mesh and the solver's workspace
+  // for jobs of up to max_keyframes / max_points / max_observations
+  // (allocates).
+  Status configure(const BundleAdjusterOptions& options, const Mesh& mesh, const Pinhole& K, int max_keyframes,
+                   int max_points, int max_observations);
   // Solves the job in place with iteration and time limits (overriding the
   // options' when > 0) and fills job->summary. False (summary.usable false)
-  // on an invalid job or a failed solve: the job's values are then not to
-  // be applied.
+  // on a refused job (summary.refusal says why) or a failed solve: the
+  // job's values are then not to be applied. The Schur solver allocates
+  // nothing here.
   bool solve(BaJob* job, int max_iterations = 0, double max_time_s = 0);
+  // Why solve() would refuse the job (BaRefusal::kNone: it would not).
+  BaRefusal check(const BaJob& job) const;
 
   // Drops the tangent planes kept from earlier solves (the bench: every
   // solve pays its closest-point queries).
@@ -65,9 +73,15 @@ class BundleAdjuster {
 
  private:
   struct Impl;  // the Ceres objects (kept out of this header: glog macros)
-  bool valid(const BaJob& job) const;
   struct SolveStats {
-    int residuals = 0, parameters = 0;  // Ceres' scalar residuals and effective parameters
+    int residuals = 0, parameters = 0;  // scalar residuals and effective parameters
+  };
+  // What one solver run reports.
+  struct SolverRun {
+    double initial_cost = 0, final_cost = 0, total_s = 0;
+    int iterations = 0;
+    bool usable = false;
+    SolveStats stats;
   };
   bool solve_tested_prior(BaJob* job, int max_iterations, double max_time_s);
   void test_focal(BaJob* job, int max_iterations, double max_time_s);
@@ -78,20 +92,33 @@ class BundleAdjuster {
                   SolveStats* stats, FocalTest focal = FocalTest::kNone);
   void save_solution(const BaJob& job);
   void restore_solution(BaJob* job) const;
-  int build(BaJob* job, bool free_prior, FocalTest focal);
+  int select(BaJob* job, bool free_prior, FocalTest focal);
+  void configure_ceres(int max_keyframes, int max_points, int max_observations);
+  SolverRun run_ceres(BaJob* job, int max_iterations, double max_time_s);
+  void build_ceres(BaJob* job);
+  SolverRun run_schur(BaJob* job, int max_iterations, double max_time_s);
+  bool load_schur(const BaJob& job);
   void newest_frames_per_point(const BaJob& job, int cap, bool fixed_only, std::vector<std::int32_t>* rows) const;
   bool keep_observation(const BaJob& job, const BaObservation& o) const;
   bool usable_observation(const BaJob& job, const BaObservation& o) const;
   void select_points(BaJob* job);
-  void add_shape_residuals(BaJob* job);
-  double* pose_delta_block(int keyframe);  // Ceres' 6-dim pose block of a job keyframe
+  void select_shapes(BaJob* job);
+  double* pose_delta_block(int keyframe);  // the 6-dim pose delta of a job keyframe
   void apply_pose_deltas(BaJob* job);
   void finish(BaJob* job, double initial_cost, double final_cost, double total_s, int iterations, bool usable);
 
   BundleAdjusterOptions options_;
   Pinhole K_;
   ClosestPointIndex surface_;
-  std::unique_ptr<Impl> impl_;
+  std::unique_ptr<Impl> impl_;  // kCeres only
+  SchurSolver schur_;            // kSchur only (configured for the maxima)
+  std::vector<SE3> T0_;          // per job keyframe: the handed-over pose of this solve
+  std::vector<double> deltas_;   // 6 per job keyframe: the solved left deltas
+  std::vector<std::uint8_t> observation_used_;  // per job observation: in this solve
+  std::vector<std::uint8_t> shape_used_;        // per job point: has a shape residual in this solve
+  bool use_prior_ = false;                     // this solve: the prior residual is on
+  FocalTest focal_ = FocalTest::kNone;         // this solve's focal mode
+  double focal_scale_[1] = {1.0};              // the focal test's parameter (FocalTest::kFree)
   std::vector<std::uint8_t> point_observed_;  // per job point: in the problem (a count while building)
   std::vector<std::uint8_t> held_;            // per job keyframe: pose held constant (fixed or gauge), not a block
   std::vector<std::int32_t> newest_frames_;   // per job point: max_observations_per_point newest frames, descending
@@ -110,7 +137,7 @@ class BundleAdjuster {
   };
   std::vector<CachedPlane> plane_cache_;
   bool plane_for(const BaPoint& p, ShapePlane* plane, int* queries);
-  int max_points_ = 0, max_observations_ = 0;
+  int max_keyframes_ = 0, max_points_ = 0, max_observations_ = 0;
   bool configured_ = false;
 };
 

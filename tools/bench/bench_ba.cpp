@@ -2,9 +2,11 @@
 // simulated window of the CT liver (tests/support/ba_window.h): 8 keyframes
 // (+2 older fixed ones), ~1000 points, 1280x720 pinhole fx = 1000, poses
 // perturbed by 1 deg / 2 mm and points by 1 mm, default options (10
-// iterations, w_shape 100), one thread. Rows: solve time with the shape
-// residual and with w_shape = 0; allocations per solve and accuracy in the
-// note; the closest-point query D(f) for points within 2 mm of the surface.
+// iterations, w_shape 100), one thread. Rows: solve time of the Schur
+// solver with the Ceres form as the baseline (same run, alternating), with
+// the shape residual and with w_shape = 0; allocations per solve, accuracy
+// and the two solutions' largest differences in the note; the closest-point
+// query D(f) for points within 2 mm of the surface.
 #include <time.h>
 
 #include <algorithm>
@@ -18,6 +20,7 @@
 #include "core/mapping/bundle_adjustment.h"
 #include "core/mesh/closest_point.h"
 #include "platform/alloc_counter.h"
+#include "platform/clock.h"
 #include "tests/support/ba_window.h"
 
 namespace st::bench {
@@ -37,6 +40,46 @@ double mean_point_error(const test::BaWindow& w) {
   return e / w.job.point_count;
 }
 
+// One form's solves of the same window: times, allocations, accuracy.
+struct FormRun {
+  std::vector<double> wall_ms, cpu_ms;
+  std::uint64_t max_allocs = 0;
+  double iterations = 0, point_error = 0, surface = 0;
+  BaJob solved;
+};
+
+void solve_once(BundleAdjuster& ba, const BaJob& pristine, test::BaWindow& w, FormRun* run) {
+  w.job = pristine;
+  ba.forget_planes();  // a fresh window: every plane queried (the tracker reuses most)
+  const std::uint64_t a0 = platform::thread_allocation_count();
+  const double t0 = now_ms(), c0 = thread_cpu_ms();
+  ba.solve(&w.job);
+  const double wall = now_ms() - t0, cpu = thread_cpu_ms() - c0;
+  run->max_allocs = std::max(run->max_allocs, platform::thread_allocation_count() - a0);
+  run->wall_ms.push_back(wall);  // (after the count: the vectors grow)
+  run->cpu_ms.push_back(cpu);
+  run->iterations += w.job.summary.iterations;
+  run->point_error = mean_point_error(w);
+  run->surface = ba.mean_surface_distance(w.job);  // all points, exact, outside the timing
+  run->solved = w.job;
+}
+
+// Largest differences between two solutions of one window: rotation (deg),
+// camera centre (mm), point (mm).
+std::string agreement(const BaJob& a, const BaJob& b) {
+  double rot = 0, centre = 0, point = 0;
+  for (int k = 0; k < a.keyframe_count; ++k) {
+    rot = std::max(rot, pose_delta(a.pose(k), b.pose(k)).angle_deg);
+    centre = std::max(centre, (a.pose(k).inverse().translation() - b.pose(k).inverse().translation()).norm());
+  }
+  for (int i = 0; i < a.point_count; ++i) point = std::max(point, (a.point(i) - b.point(i)).norm());
+  char s[120];
+  std::snprintf(s, sizeof s, "vs ceres max %.1e deg %.1e mm, points %.1e mm", rot, centre, point);
+  return s;
+}
+
+// The Schur solver (the product path) with the Ceres form as the baseline,
+// alternating on the same window so that both see the same machine load.
 Row bench_window(const Options& opt, const Mesh& liver, double w_shape, int points, int max_obs_per_point = 0) {
   test::BaWindowSpec spec;
   spec.points = points;
@@ -45,34 +88,36 @@ Row bench_window(const Options& opt, const Mesh& liver, double w_shape, int poin
   BundleAdjusterOptions o;
   o.w_shape = w_shape;
   o.max_observations_per_point = max_obs_per_point;
-  BundleAdjuster ba;
+  o.now_ns = platform::monotonic_ns;
+  BundleAdjusterOptions o_ceres = o;
+  o_ceres.solver = BaSolverForm::kCeres;
+  BundleAdjuster schur, ceres;
   Row row;
-  if (!ba.configure(o, liver, K, w.job.point_capacity(), w.job.observation_capacity()).ok()) return row;
+  const int nk = w.job.keyframe_capacity(), np = w.job.point_capacity(), no = w.job.observation_capacity();
+  if (!schur.configure(o, liver, K, nk, np, no).ok() || !ceres.configure(o_ceres, liver, K, nk, np, no).ok())
+    return row;
   const BaJob pristine = w.job;
+  const double err_before = mean_point_error(w);
   const int n = opt.iterations > 0 ? opt.iterations : 30;
-  std::uint64_t max_allocs = 0;
-  std::vector<double> cpu_ms;
-  double iters = 0, err_before = mean_point_error(w), err_after = 0, surface = 0;
+  FormRun fs, fc;
   for (int i = 0; i < n; ++i) {
-    w.job = pristine;
-    ba.forget_planes();  // a fresh window: every plane queried (the tracker reuses most)
-    const std::uint64_t a0 = platform::thread_allocation_count();
-    const double t0 = now_ms(), c0 = thread_cpu_ms();
-    ba.solve(&w.job);
-    row.samples_ms.push_back(now_ms() - t0);
-    cpu_ms.push_back(thread_cpu_ms() - c0);
-    max_allocs = std::max(max_allocs, platform::thread_allocation_count() - a0);
-    iters += w.job.summary.iterations;
-    err_after = mean_point_error(w);
-    surface = ba.mean_surface_distance(w.job);  // all points, exact, outside the timing
+    solve_once(ceres, pristine, w, &fc);
+    solve_once(schur, pristine, w, &fs);
   }
+  row.samples_ms = fs.wall_ms;
+  row.baseline = "ceres";
+  row.baseline_ms = fc.wall_ms;
   row.name = "ba window 8 kf " + std::to_string(w.job.point_count) + " pts w_shape " + std::to_string(static_cast<int>(w_shape));
   if (max_obs_per_point > 0) row.name += " <= " + std::to_string(max_obs_per_point) + " obs/pt";
-  char note[260];
+  char note[480];
   std::snprintf(note, sizeof note,
-                "cpu median %.2f min %.2f ms; %d obs; %.1f iterations; allocations/solve %llu; point error %.2f -> %.3f mm; to surface %.3f mm",
-                median(cpu_ms), *std::min_element(cpu_ms.begin(), cpu_ms.end()), w.job.summary.observations, iters / n, static_cast<unsigned long long>(max_allocs), err_before,
-                err_after, surface);
+                "schur: cpu median %.2f ms, %.1f iterations, allocations/solve %llu, point error %.2f -> %.3f mm, "
+                "to surface %.3f mm; ceres: cpu median %.2f ms, %.1f iterations, allocations/solve %llu, point error "
+                "-> %.3f mm, to surface %.3f mm; %d obs; %s",
+                median(fs.cpu_ms), fs.iterations / n, static_cast<unsigned long long>(fs.max_allocs), err_before,
+                fs.point_error, fs.surface, median(fc.cpu_ms), fc.iterations / n,
+                static_cast<unsigned long long>(fc.max_allocs), fc.point_error, fc.surface,
+                fs.solved.summary.observations, agreement(fs.solved, fc.solved).c_str());
   row.note = note;
   return row;
 }

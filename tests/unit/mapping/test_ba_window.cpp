@@ -55,7 +55,7 @@ BundleAdjusterOptions options(double w_shape) {
 // ba configured for the CT liver, the test pinhole and job's capacities.
 bool configure_for(BundleAdjuster& ba, const BundleAdjusterOptions& o, const Mesh& mesh, const Pinhole& K,
                    const BaJob& job) {
-  return ba.configure(o, mesh, K, job.point_capacity(), job.observation_capacity()).ok();
+  return ba.configure(o, mesh, K, job.keyframe_capacity(), job.point_capacity(), job.observation_capacity()).ok();
 }
 
 // A default simulated window of the given number of points.
@@ -152,7 +152,7 @@ TEST_CASE("ba window: invalid jobs are refused without touching Ceres") {
   BaJob job;
   REQUIRE(job.configure(2, 2, 2).ok());
   CHECK_FALSE(ba.solve(&job));  // not configured
-  REQUIRE(ba.configure(BundleAdjusterOptions{}, mesh, K, 2, 2).ok());
+  REQUIRE(ba.configure(BundleAdjusterOptions{}, mesh, K, 2, 2, 2).ok());
   CHECK_FALSE(ba.solve(&job));  // empty
   const SE3 T = look_at(bbox_centre(mesh), Vec3(0, 0, 1), 200, 0);
   const int k = job.add_keyframe(0, 1, T, false);
@@ -166,7 +166,7 @@ TEST_CASE("ba window: invalid jobs are refused without touching Ceres") {
   CHECK_FALSE(job.summary.usable);
   BundleAdjusterOptions bad;
   bad.w_shape = -1;
-  CHECK_FALSE(ba.configure(bad, mesh, K, 2, 2).ok());
+  CHECK_FALSE(ba.configure(bad, mesh, K, 2, 2, 2).ok());
   CHECK_FALSE(job.configure(0, 1, 1).ok());
 }
 

@@ -41,8 +41,7 @@ TrackerConfig small_config(const Pinhole& K) {
   return c;
 }
 
-// Solves each job as it is submitted, on the calling thread (tests only:
-// this allocates inside Ceres on the tracking thread).
+// Solves each job as it is submitted, on the calling thread (tests only).
 class InlineChannel final : public BaChannel {
  public:
   Status configure(const TrackerConfig& c, const Mesh& mesh, const Pinhole& K) {
@@ -51,7 +50,7 @@ class InlineChannel final : public BaChannel {
     o.max_iterations = c.ba.max_iterations;
     o.max_time_s = 1.0;
     if (Status s = job_.configure(c.max_keyframes, c.max_map_points, c.ba_max_observations); !s.ok()) return s;
-    return ba_.configure(o, mesh, K, c.max_map_points, c.ba_max_observations);
+    return ba_.configure(o, mesh, K, c.max_keyframes, c.max_map_points, c.ba_max_observations);
   }
   BaJob* acquire_job() override { return state_ == 0 ? &job_ : nullptr; }
   void submit_job(BaJob*) override {
