@@ -61,6 +61,11 @@ Status SchurSolver::configure(int max_keyframes, int max_points, int max_observa
   input_.assign(no, Observation{});
   sorted_ = input_;
   lin_obs_.assign(no, Linearization{});
+  lin_obs_b_ = lin_obs_;
+  U_b_ = U_;
+  g_pose_b_ = U_focal_b_ = x_pose_;
+  V_b_ = shape_J_b_ = V_;
+  g_point_b_ = W_focal_b_ = shape_r_b_ = x_point_;
   const int max_columns = 6 * max_keyframes + 1;
   S_.setZero(max_columns, max_columns);
   rhs_.setZero(max_columns);
@@ -461,6 +466,21 @@ void SchurSolver::make_candidate() {
   cand_focal_ = x_focal_ + step_focal_;
 }
 
+// Exchanges the linearization at x with the spare set (no copy, no allocation).
+void SchurSolver::swap_linearization() {
+  lin_obs_.swap(lin_obs_b_);
+  U_.swap(U_b_);
+  g_pose_.swap(g_pose_b_);
+  U_focal_.swap(U_focal_b_);
+  V_.swap(V_b_);
+  g_point_.swap(g_point_b_);
+  W_focal_.swap(W_focal_b_);
+  shape_r_.swap(shape_r_b_);
+  shape_J_.swap(shape_J_b_);
+  std::swap(U_ff_, U_ff_b_);
+  std::swap(g_focal_, g_focal_b_);
+}
+
 void SchurSolver::accept_candidate() {
   for (int k = 0; k < keyframe_count_; ++k) {
     const auto ks = static_cast<std::size_t>(k);
@@ -489,8 +509,14 @@ SchurSolver::Iteration SchurSolver::iterate(const SchurSolverOptions& o, LmState
   }
   s->invalid_steps = 0;
   make_candidate();
+  // The candidate is evaluated with its Jacobians into the spare set: an
+  // accepted step then needs no second evaluation (its cost and
+  // linearization are the ones at the new x, bit for bit).
   double candidate_cost = 0.0;
-  if (!evaluate(true, false, &candidate_cost)) candidate_cost = std::numeric_limits<double>::max();
+  swap_linearization();
+  const bool candidate_ok = evaluate(true, true, &candidate_cost);
+  swap_linearization();
+  if (!candidate_ok) candidate_cost = std::numeric_limits<double>::max();
   if (s->any_success && step_norm() <= o.parameter_tolerance * (parameter_norm() + o.parameter_tolerance)) {
     it.end = IterationEnd::kConverged;
     return it;
@@ -507,10 +533,8 @@ SchurSolver::Iteration SchurSolver::iterate(const SchurSolverOptions& o, LmState
     return it;
   }
   accept_candidate();
-  if (!evaluate(false, true, &s->cost)) {
-    it.end = IterationEnd::kFailure;
-    return it;
-  }
+  swap_linearization();
+  s->cost = candidate_cost;
   it.cost = s->cost;
   it.success = true;
   s->any_success = s->new_diagonal = true;
