@@ -66,6 +66,7 @@ Status SchurSolver::configure(int max_keyframes, int max_points, int max_observa
   g_pose_b_ = U_focal_b_ = x_pose_;
   V_b_ = shape_J_b_ = V_;
   g_point_b_ = W_focal_b_ = shape_r_b_ = x_point_;
+  S_blocks_.assign(nk * nk, Mat6::Zero());
   const int max_columns = 6 * max_keyframes + 1;
   S_.setZero(max_columns, max_columns);
   rhs_.setZero(max_columns);
@@ -333,13 +334,17 @@ bool SchurSolver::compute_step(double radius, bool new_diagonal, const SchurSolv
   }
   mu_ = 1.0 / radius;
   const int n = columns_;
+  const int nb = free_keyframes_ = (free_focal_ ? n - 1 : n) / 6;
   S_.topLeftCorner(n, n).setZero();
+  for (int a = 0; a < nb; ++a)
+    for (int b = 0; b < a; ++b) S_blocks_[static_cast<std::size_t>(a * nb + b)].setZero();
   for (int k = 0; k < keyframe_count_; ++k) {
     const auto ks = static_cast<std::size_t>(k);
     const int c = column_[ks];
     if (c < 0) continue;
-    S_.block<6, 6>(c, c) = U_[ks];
-    S_.block<6, 6>(c, c).diagonal() += mu_ * diag_pose_[ks];
+    Mat6& D = S_blocks_[static_cast<std::size_t>((c / 6) * (nb + 1))];
+    D = U_[ks];
+    D.diagonal() += mu_ * diag_pose_[ks];
     rhs_.segment<6>(c) = -g_pose_[ks];
     if (free_focal_) S_.block<1, 6>(n - 1, c) = U_focal_[ks].transpose();
   }
@@ -348,6 +353,8 @@ bool SchurSolver::compute_step(double radius, bool new_diagonal, const SchurSolv
     rhs_(n - 1) = -g_focal_;
   }
   for (int a = 0; a < active_count_; ++a) eliminate_point(active_points_[static_cast<std::size_t>(a)]);
+  for (int a = 0; a < nb; ++a)
+    for (int b = 0; b <= a; ++b) S_.block<6, 6>(6 * a, 6 * b) = S_blocks_[static_cast<std::size_t>(a * nb + b)];
   if (n > 0) {
     Eigen::Ref<Eigen::MatrixXd> A(S_.topLeftCorner(n, n));
     const Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>, Eigen::Lower> llt(A);
@@ -378,6 +385,7 @@ void SchurSolver::eliminate_point(int point) {
   const int f = columns_ - 1;  // the focal column, when free
   const Vec3 vf = V_inv * W_focal_[p];
   const int first = first_obs_[p], last = first_obs_[p + 1];
+  const int nb = free_keyframes_;
   for (int i = first; i < last; ++i) {
     const int ci = sorted_[static_cast<std::size_t>(i)].column;
     if (ci < 0) continue;
@@ -392,14 +400,14 @@ void SchurSolver::eliminate_point(int point) {
       const Eigen::Matrix2d A = Li.Q.transpose() * Lj.H;  // block (i, j) = G_i A G_j^T
       if (ci > cj || i == j) {
         const Eigen::Matrix<double, 6, 2> B = Lj.G * A.transpose();
-        S_.block<6, 6>(ci, cj).noalias() -= Li.G * B.transpose();
+        S_blocks_[static_cast<std::size_t>((ci / 6) * nb + cj / 6)].noalias() -= Li.G * B.transpose();
       } else if (ci < cj) {
         const Eigen::Matrix<double, 6, 2> B = Li.G * A;  // the transpose: G_j A^T G_i^T
-        S_.block<6, 6>(cj, ci).noalias() -= Lj.G * B.transpose();
+        S_blocks_[static_cast<std::size_t>((cj / 6) * nb + ci / 6)].noalias() -= Lj.G * B.transpose();
       } else {  // two observations from one keyframe: both orders land on the diagonal block
         const Eigen::Matrix<double, 6, 2> B = Lj.G * A.transpose();
         const Mat6 M = Li.G * B.transpose();
-        S_.block<6, 6>(ci, ci) -= M + M.transpose();
+        S_blocks_[static_cast<std::size_t>((ci / 6) * (nb + 1))] -= M + M.transpose();
       }
     }
   }

@@ -187,6 +187,11 @@ class SchurSolver {
   std::vector<Mat3> V_b_, shape_J_b_;
   std::vector<Vec3> g_point_b_, W_focal_b_, shape_r_b_;
   double U_ff_b_ = 0, g_focal_b_ = 0;
+  // The reduced system's 6x6 keyframe blocks while the points are
+  // eliminated (block (a, b), a >= b, at a * free keyframes + b): fixed-size
+  // and contiguous, copied into S_ for the Cholesky.
+  std::vector<Mat6> S_blocks_;
+  int free_keyframes_ = 0;
   // Reduced camera system (lower triangle), right-hand side and step.
   Eigen::MatrixXd S_;
   Eigen::VectorXd rhs_;
