@@ -389,15 +389,15 @@ void SchurSolver::eliminate_point(int point) {
   for (int i = first; i < last; ++i) {
     const int ci = sorted_[static_cast<std::size_t>(i)].column;
     if (ci < 0) continue;
-    Linearization& Li = lin_obs_[static_cast<std::size_t>(i)];
-    Li.Q.noalias() = V_inv * Li.H;
+    const Linearization& Li = lin_obs_[static_cast<std::size_t>(i)];
+    const Eigen::Matrix<double, 3, 2> Qi = V_inv * Li.H;
     rhs_.segment<6>(ci).noalias() += Li.G * (Li.H.transpose() * vg);
     if (free_focal_) S_.block<1, 6>(f, ci).noalias() -= (Li.G * (Li.H.transpose() * vf)).transpose();
     for (int j = first; j <= i; ++j) {
       const int cj = sorted_[static_cast<std::size_t>(j)].column;
       if (cj < 0) continue;
       const Linearization& Lj = lin_obs_[static_cast<std::size_t>(j)];
-      const Eigen::Matrix2d A = Li.Q.transpose() * Lj.H;  // block (i, j) = G_i A G_j^T
+      const Eigen::Matrix2d A = Qi.transpose() * Lj.H;  // block (i, j) = G_i A G_j^T
       if (ci > cj || i == j) {
         const Eigen::Matrix<double, 6, 2> B = Lj.G * A.transpose();
         S_blocks_[static_cast<std::size_t>((ci / 6) * nb + cj / 6)].noalias() -= Li.G * B.transpose();

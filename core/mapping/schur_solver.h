@@ -104,11 +104,11 @@ class SchurSolver {
   // One observation's corrected (Huber-scaled) residual and Jacobians at
   // x, stored transposed: a row-major 2 x n Jacobian as reprojection_cost()
   // writes it is a column-major n x 2, whose columns are the packets the
-  // 6x6 and 3x3 products below run on.
+  // 6x6 and 3x3 products below run on. Kept small: it is streamed through
+  // at every evaluation and step.
   struct Linearization {
     Eigen::Matrix<double, 6, 2> G;  // J_pose^T
     Eigen::Matrix<double, 3, 2> H;  // J_point^T
-    Eigen::Matrix<double, 3, 2> Q;  // V^-1 J_point^T (per step)
     Vec2 r, J_focal;
   };
 
