@@ -3,8 +3,10 @@
 //   scopetrack-sim --scenario NAME --out DIR [--frames N] [--size WxH]
 //                  [--seed S] [--organ liver|kidney|stomach | --mesh FILE] [--prior-subdivide N] [--field-stop on|off] [--organ-detail F]
 //                  [--shutter F] [--light F] [--smoke F] [--texture FILE.y4m] [--texture-scale PX_PER_MM]
+//                  [--tissue textured|smooth] [--breathing MM]
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <string>
 #include <string_view>
 
@@ -13,6 +15,9 @@
 #include "tools/sim/sim_run.h"
 
 namespace {
+
+// The CT liver of shared/data, where the build's SCOPETRACK_SHARED_DIR put it.
+constexpr const char* kCtLiver = SCOPETRACK_SIM_CT_LIVER;
 
 void usage(std::FILE* to) {
   std::fprintf(to,
@@ -27,7 +32,11 @@ void usage(std::FILE* to) {
                "                      [--light F (1: the scope light's power; lower = a dimmer, noisier scene)]\n"
                "                      [--smoke F (0: none; surgical smoke episodes, the veil's peak share 0..0.9)]\n"
                "                      [--texture FILE.y4m (organ texture from a photo's first frame)]\n"
-               "                      [--texture-scale PX_PER_MM (4: photo pixels per mm of tissue)]\n");
+               "                      [--texture-scale PX_PER_MM (4: photo pixels per mm of tissue)]\n"
+               "                      [--tissue textured|smooth (textured; smooth: glossy, wet, ~1 corner per\n"
+               "                       10k organ px, on the CT liver: --mesh defaults to %s)]\n"
+               "                      [--breathing MM (0: none; the organ's largest displacement, period 4 s)]\n",
+               kCtLiver);
 }
 
 // Returns an error message, or empty when all arguments were understood.
@@ -86,6 +95,12 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
     } else if (a == "--texture-scale") {
       if (!st::parse_double_in(v, 0.1, 1000.0, &o->texture_px_per_mm))
         return "--texture-scale wants photo pixels per mm of tissue, 0.1..1000";
+    } else if (a == "--tissue") {
+      if (v != "textured" && v != "smooth") return "--tissue wants textured or smooth";
+      o->tissue = v == "smooth" ? st::sim::Tissue::Smooth : st::sim::Tissue::Textured;
+    } else if (a == "--breathing") {
+      if (!st::parse_double_in(v, 0.0, st::sim::kMaxBreathingMm, &o->breathing_mm))
+        return "--breathing wants the organ's largest displacement in mm, 0..20 (0: none)";
     } else if (a == "--field-stop") {
       if (v != "on" && v != "off") return "--field-stop wants on or off";
       o->field_stop = v == "on" ? 1 : 0;
@@ -96,6 +111,17 @@ std::string parse_args(int argc, char** argv, st::sim::SimOptions* o) {
   if (!have_scenario) return "--scenario is required";
   if (o->out_dir.empty()) return "--out is required";
   if (have_organ && !o->mesh_file.empty()) return "--organ and --mesh both name the organ: give one";
+  if (o->tissue == st::sim::Tissue::Smooth) {
+    if (have_organ) return "--tissue smooth is rendered on a mesh file (the CT liver), not on --organ";
+    if (!o->texture_file.empty()) return "--tissue smooth and --texture both define the organ's texture: give one";
+    if (o->mesh_file.empty()) {
+      o->mesh_file = kCtLiver;
+      std::error_code ec;
+      if (!std::filesystem::is_regular_file(o->mesh_file, ec))
+        return std::string("--tissue smooth renders the CT liver, not found at ") + kCtLiver +
+               ": give its path with --mesh (shared/data/liver/liver.ply)";
+    }
+  }
   return {};
 }
 

@@ -47,7 +47,7 @@ Material material(MaterialId id) {
       m.vessel = {0.25f, 0.03f, 0.06f};
       m.vessel_mm = 35.0f;
       m.vessel_width = 0.04f;
-      m.vessel_strength = 0.6f;
+      m.vessel_strength = 1.0f;
       m.speckle_strength = 0.05f;
       m.specular = 0.25f;
       m.shininess_log2 = 4;
@@ -73,6 +73,31 @@ Material material(MaterialId id) {
       m.shininess_log2 = 6;
       break;
   }
+  return m;
+}
+
+Material smooth_liver() {
+  Material m = material(MaterialId::Liver);
+  // Per-vertex mottling would be sampled at the CT mesh's ~4 mm vertex
+  // spacing (creases at every vertex): the texel grid carries it instead.
+  m.mottle = 0.0f;
+  m.variation_mm = 30.0f;  // broad lobe-scale colour drift (per vertex: smooth)
+  m.smooth_mottle_mm = 7.0f;
+  m.smooth_fine = 0.25f;
+  m.speckle_strength = 0.6f;
+  // Small dark marks of random strength (the vessel channel), most too
+  // faint for FAST: the few surface-fixed corners a tracker can hold on
+  // to, as on the real frame once its noise is gone.
+  m.vessel_strength = 1.0f;
+  m.spots = 1.0f;
+  m.spot_mm = 2.5f;  // calibrated: ~1 FAST>20 corner per 10k organ px without noise
+  m.spot_radius_mm = 0.6f;  // a dark core of ~2 px inside FAST's 3 px ring
+  m.specular = 0.9f;
+  m.shininess_log2 = 8;
+  m.film = 3.0f;
+  m.film_shininess_log2 = 11;
+  m.film_tilt = 0.14f;
+  m.film_mm = 3.0f;
   return m;
 }
 
@@ -125,5 +150,40 @@ Texture::Detail Texture::detail_sample(const Material& m, const Vec3f& p) const 
   return d;
 }
 
+Texture::Detail Texture::smooth_sample(const Material& m, const Vec3f& p) const {
+  const float f = 1.0f / m.smooth_mottle_mm;
+  // Two smooth octaves (9 and 4 mm by default) and a faint third: patches
+  // of brighter and darker tissue with soft edges, no point-like features.
+  const float a = noise_.gradient(p.x() * f + 5.3f, p.y() * f, p.z() * f + 1.9f);
+  const float b = noise_.gradient(p.x() * 2.2f * f, p.y() * 2.2f * f + 3.7f, p.z() * 2.2f * f);
+  const float c = detail_.gradient(p.x() * 4.1f * f + 0.7f, p.y() * 4.1f * f, p.z() * 4.1f * f + 6.2f);
+  Detail d;
+  d.speckle = std::clamp(0.5f + 0.5f * (a + 0.5f * b + m.smooth_fine * c), 0.0f, 1.0f);
+  if (m.spots > 0.0f) {  // soft-edged, of random strength (most faint)
+    const float t = 1.0f / m.spot_mm;
+    const Noise3::Cell cell = noise_.cellular(p.x() * t + 3.3f, p.y() * t + 0.4f, p.z() * t + 7.9f);
+    const float r = cell.distance * m.spot_mm / m.spot_radius_mm;
+    d.vessel = std::min(1.0f, std::clamp(2.5f * (1.0f - r), 0.0f, 1.0f) * m.spots * cell.value);
+  }
+  return d;
+}
+
+Vec3f Texture::film_tilt(const Material& m, const Vec3f& p) const {
+  // Central differences of two octaves of ripples; the height is in units
+  // of the wavelength, so the gradient is dimensionless (a slope).
+  auto height = [&](const Vec3f& q) {
+    const float f = 1.0f / m.film_mm, g = f / 0.45f;
+    return detail_.gradient(q.x() * f + 11.3f, q.y() * f, q.z() * f + 2.1f) +
+           0.45f * detail_.gradient(q.x() * g, q.y() * g + 4.4f, q.z() * g + 13.7f);
+  };
+  const float h = 0.05f * m.film_mm;
+  Vec3f grad;
+  for (int k = 0; k < 3; ++k) {
+    Vec3f e = Vec3f::Zero();
+    e[k] = h;
+    grad[k] = (height(p + e) - height(p - e)) / (2.0f * h);
+  }
+  return grad * (m.film_mm / (2.0f * static_cast<float>(M_PI)));
+}
 
 }  // namespace st::sim

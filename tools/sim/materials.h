@@ -16,6 +16,13 @@ namespace st::sim {
 
 enum class MaterialId : std::uint8_t { Liver = 0, Fat, Wall, Neighbour, Instrument, Count };
 
+// The organ's tissue: Textured is the liver calibrated on the real frame's
+// raw corner count (speckle, lobule spots, vessels); Smooth is what a real
+// liver looks like once its sensor noise is gone (about 1 surface-fixed
+// FAST>20 corner per 10k organ pixels): smooth mottling only, and a wet
+// film that puts many small saturated highlights on it.
+enum class Tissue : std::uint8_t { Textured = 0, Smooth };
+
 struct Material {
   Vec3f base{0.3f, 0.05f, 0.04f};    // linear albedo
   Vec3f alt{0.2f, 0.05f, 0.05f};     // blended with base by low-frequency fbm
@@ -36,9 +43,25 @@ struct Material {
   float spots = 0.0f;                // strength of small dark spots (0..1), in the vessel channel
   float spot_mm = 2.2f;              // spacing of the spots (lobule centres)
   float spot_radius_mm = 0.3f;
+  // Smooth tissue: > 0 puts a smooth relative-brightness mottle of this
+  // wavelength (and half of it, weaker) in the speckle channel instead of
+  // the speckle, spots and vessels.
+  float smooth_mottle_mm = 0.0f;
+  float smooth_fine = 0.0f;  // weight of the finest octave (smooth_mottle_mm / 4.1): the few corners
+  // Wet film: a second, sharper specular lobe on a normal tilted by small
+  // ripples of the film (wavelength film_mm and 0.45 of it), so a surface
+  // turned towards the scope breaks into many small glints that slide as
+  // the scope moves. film = 0: none.
+  float film = 0.0f;
+  int film_shininess_log2 = 11;
+  float film_tilt = 0.0f;  // the ripples' largest normal tilt, radians (about)
+  float film_mm = 3.0f;
 };
 
 Material material(MaterialId id);
+// The liver of Tissue::Smooth: glossier (a sharper, brighter lobe), the wet
+// film, no fine texture; colour mottling at >= 3 mm only.
+Material smooth_liver();
 
 class Texture {
  public:
@@ -51,6 +74,13 @@ class Texture {
     float vessel = 0, speckle = 0.5f;
   };
   Detail detail_sample(const Material& m, const Vec3f& p_mm) const;
+  // Smooth tissue (m.smooth_mottle_mm > 0): no vessel, the speckle channel
+  // a smooth mottle in [0, 1] around 0.5.
+  Detail smooth_sample(const Material& m, const Vec3f& p_mm) const;
+  // The wet film's normal tilt at a point: the gradient of its ripple
+  // height field, in units of m.film_tilt (length mostly < 1), model frame
+  // (the caller removes the component along the surface normal).
+  Vec3f film_tilt(const Material& m, const Vec3f& p_mm) const;
   // Albedo after vessels and speckle, from the interpolated vertex albedo.
   static Vec3f apply_detail(const Material& m, const Vec3f& albedo, float vessel, float speckle) {
     const Vec3f a = albedo + (vessel * m.vessel_strength) * (m.vessel - albedo);

@@ -19,6 +19,7 @@
 #include "core/geometry/camera.h"
 #include "core/raster/rasterizer.h"
 #include "core/base/result.h"
+#include "tools/sim/breathing.h"
 #include "tools/sim/materials.h"
 #include "tools/sim/photo_texture.h"
 #include "tools/sim/scenario.h"
@@ -59,6 +60,13 @@ struct RenderSettings {
   // Surgical smoke (smoke.h): the veil's share at the thickest point of
   // an episode, 0..kMaxSmoke; 0 renders no smoke.
   double smoke = 0.0;
+  // The organ's tissue (materials.h): Smooth replaces the liver's fine
+  // texture by smooth mottling and adds the wet film's glints; organ_detail
+  // then scales the mottling's contrast. Not with organ_photo.
+  Tissue tissue = Tissue::Textured;
+  // Breathing (breathing.h): the organ's largest displacement, mm, at the
+  // phase the trajectory gives (WorldState::breath); 0: a rigid organ.
+  double breathing_mm = 0.0;
 };
 
 class SceneRenderer {
@@ -66,11 +74,16 @@ class SceneRenderer {
   Status configure(const Scene& scene, const RenderSettings& settings);
   // Frame `frame` of the trajectory: 8-bit RGB and labels, output size.
   // Averages the trajectory's sub-frames (motion blur); the labels are the
-  // centre sub-frame, i.e. exactly the frame's pose.
+  // centre sub-frame, i.e. exactly the frame's pose. With breathing the
+  // organ takes the frame's shape once for all its sub-frames (a breath is
+  // slow beside the shutter); reshaping re-configures the organ's
+  // rasteriser, so render() then allocates.
   void render(const Trajectory& trajectory, int frame, cv::Mat& rgb, cv::Mat& labels);
   // Organ surface points seen at output pixels of a rendered frame (every
   // step_px), at least margin_px inside the organ's label region: pairs of
-  // (output pixel, model point). Re-renders the organ at `state`.
+  // (output pixel, model point). Re-renders the organ at `state`. With
+  // breathing the model point is the seen point's place on the rest shape
+  // (the same barycentric position on the rest triangle).
   std::vector<std::pair<Vec2, Vec3>> visible_organ_points(const WorldState& state, const cv::Mat& labels,
                                                           int margin_px, int step_px);
   // The ideal pinhole the meshes are rasterised with (output K plus a
@@ -91,10 +104,22 @@ class SceneRenderer {
     // plane, so interpolation never reads undefined texels.
     int texels = 8;
     std::vector<std::uint8_t> detail;
+    // The wet film's normal tilt per texel (x, y, z, unused), int8 in units
+    // of the material's film_tilt / 63.5; empty when no material has a film.
+    std::vector<std::int8_t> film;
     const Mesh* mesh = nullptr;
   };
   void prepare_mesh(const Mesh& mesh, const std::vector<MaterialId>& material, int texels, ShadeMesh* out);
+  // Normals and barycentric solves from the mesh's current vertices.
+  static void update_geometry(ShadeMesh* sm);
   void bake_detail(ShadeMesh* sm) const;
+  void bake_film(ShadeMesh* sm) const;
+  // The organ at breathing phase `phase` (0 rest, 1 the full displacement):
+  // vertices, rasteriser and shading geometry; nothing when unchanged.
+  void set_organ_shape(double phase);
+  // A point on the current organ shape's triangle tri -> the same
+  // barycentric position on the rest shape.
+  Vec3 rest_point(const Vec3& p_model, std::int32_t tri) const;
   void build_camera_maps();
   struct Xf {  // a rigid transform in float for the per-pixel loop
     Eigen::Matrix3f R;
@@ -134,6 +159,11 @@ class SceneRenderer {
   Vec3 organ_centre_model_;
   Material materials_[static_cast<int>(MaterialId::Count)];
   float specular_cutoff_[static_cast<int>(MaterialId::Count)] = {};
+  float film_cutoff_[static_cast<int>(MaterialId::Count)] = {};  // smooth n.l below which no film glint can reach
+  BreathingField breathing_;
+  Mesh organ_shape_;         // the organ at organ_phase_ (breathing only)
+  double organ_phase_ = 0.0;
+  RasterConfig organ_raster_config_;
   ShadeMesh organ_, background_, instrument_;
   MeshRasterizer organ_raster_, background_raster_, instrument_raster_;
   SmokeVeil smoke_;

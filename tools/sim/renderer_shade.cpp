@@ -198,8 +198,22 @@ void SceneRenderer::shade_rows(const Xf T_mesh_camera[3], float irradiance, floa
     spec = ndl;
     for (int k = 0; k < mat.shininess_log2; ++k) spec *= spec;
   }
+  // The wet film (smooth tissue): its own sharp lobe on the smooth normal
+  // tilted by the baked ripples; only where the smooth normal faces the
+  // scope closely enough for any tilt to reach the lobe.
+  float film = 0.0f;
+  if (!sm.film.empty() && ndl > film_cutoff_[mat_id]) {
+    const std::int8_t* f = &sm.film[((static_cast<std::size_t>(tri) * g + iy) * g + ix) * 4];
+    const std::int8_t* f2 = f + 4 * g;
+    const Vec3f tilt(w00 * f[0] + w10 * f[4] + w01 * f2[0] + w11 * f2[4],
+                     w00 * f[1] + w10 * f[5] + w01 * f2[1] + w11 * f2[5],
+                     w00 * f[2] + w10 * f[6] + w01 * f2[2] + w11 * f2[6]);
+    const Vec3f n_film = n_raw / std::sqrt(n_raw.squaredNorm()) + tilt * (mat.film_tilt * (1.0f / 63.5f));
+    film = std::max(0.0f, -n_film.dot(Rp) / std::sqrt(n_film.squaredNorm() * dist2));
+    for (int k = 0; k < mat.film_shininess_log2; ++k) film *= film;
+  }
   const float e = irradiance / dist2;
-  return albedo * (e * ndl + kAmbient) + Vec3f::Constant(e * mat.specular * spec);
+  return albedo * (e * ndl + kAmbient) + Vec3f::Constant(e * mat.specular * spec + e * mat.film * film);
 }
 
 void SceneRenderer::finish(int frame, cv::Mat& rgb, cv::Mat& labels) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "tools/sim/breathing.h"
 #include "tools/sim/rng.h"
 
 namespace st::sim {
@@ -170,6 +171,7 @@ WorldState Trajectory::at(double frame) const {
   s.T_world_camera = to_pose(v, t_s);
   s.T_world_model = organ_motion(u);
   s.T_world_instrument = instrument_pose(u, s.T_world_model);
+  s.breath = BreathingField::phase(t_s);
   return s;
 }
 

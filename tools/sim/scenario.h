@@ -28,6 +28,9 @@ struct WorldState {
   SE3 T_world_camera;
   SE3 T_world_model;       // the organ (moves only in manipulation)
   SE3 T_world_instrument;  // instrument frame: jaw tip at z = -12, shaft along +z
+  // Breathing phase (breathing.h): 0 at rest, 1 at the full displacement;
+  // the renderer scales it by its amplitude (none by default).
+  double breath = 0.0;
   SE3 T_model_camera() const { return T_world_model.inverse() * T_world_camera; }
 };
 

@@ -17,6 +17,8 @@ RenderSettings default_render(const SimOptions& o, int W, int H) {
   r.organ_detail = o.organ_detail;
   r.shutter = o.shutter;
   r.smoke = o.smoke;
+  r.tissue = o.tissue;
+  r.breathing_mm = o.breathing_mm;
   r.exposure *= o.light;
   const bool invivo = o.scenario == ScenarioKind::InVivo;
   r.field_stop = o.field_stop < 0 ? invivo : o.field_stop == 1;
@@ -41,6 +43,8 @@ Result<SimSetup> make_setup(const SimOptions& o) {
                       " must be even and within 16x16.." + std::to_string(kMaxImageWidth) + "x" +
                       std::to_string(kMaxImageHeight));
   if (o.frames < 1 || o.frames > 1'000'000) return make_error("--frames must be in 1..1000000");
+  if (o.tissue == Tissue::Smooth && o.mesh_file.empty())
+    return make_error("smooth tissue is rendered on the CT liver: give --mesh shared/data/liver/liver.ply");
   SimSetup s;
   Mesh organ;
   if (o.mesh_file.empty()) {

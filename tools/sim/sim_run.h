@@ -40,6 +40,10 @@ struct SimOptions {
   double smoke = 0.0;               // RenderSettings::smoke (0: no surgical smoke)
   std::filesystem::path texture_file;  // a Y4M photo for the organ's texture; empty: procedural
   double texture_px_per_mm = PhotoTexture::kDefaultPxPerMm;
+  // RenderSettings::tissue. Smooth is rendered on a mesh file (the CT
+  // liver, shared/data/liver/liver.ply): make_setup refuses it without one.
+  Tissue tissue = Tissue::Textured;
+  double breathing_mm = 0.0;        // RenderSettings::breathing_mm (0: a rigid organ)
   bool progress = false;            // progress bar on stderr
 };
 
