@@ -154,7 +154,7 @@ TEST_CASE("sim smooth: wet highlights saturate a share of the organ in many smal
   CHECK(blob_sum / 3 >= 8);
 }
 
-TEST_CASE("sim smooth: breathing bends the organ by the amount asked; the prior is the rest shape" *
+TEST_CASE("sim smooth: breathing bends the organ by the amount asked, the prior is the rest shape" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   SimOptions o = smooth_options(61, 640, 360);
   o.breathing_mm = 3.0;
