@@ -123,7 +123,7 @@ void wait_for_stop(const sigset_t& signals, const LoopStatus& status, bool print
 int finish_run(const CameraArgs& args, const SequenceConfig& cal, const LibcameraCapture& capture,
                const TrackerProcessor& processor, RunWriter* writer, FrameLoop* loop) {
   RunStats& stats = loop->stats;
-  fill_timing(loop->latency, stats.wall_s, &stats);
+  loop->fill_timing();
   if (loop->source_error) stats.error = capture.error();
   const CaptureCounters counters = capture.counters();
   std::fprintf(stderr, "\n%d frames: %d with a pose, %d lost  %.1f fps  latency mean %.2f ms p99 %.2f ms"

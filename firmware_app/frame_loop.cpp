@@ -82,13 +82,12 @@ void FrameLoop::run() {
   if (status) status->done.store(true);
 }
 
-void fill_timing(const LatencyHistogram& latency, double wall_s, RunStats* s) {
-  s->wall_s = wall_s;
-  s->fps = wall_s > 0 ? s->frames / wall_s : 0.0;
-  s->mean_latency_ms = latency.mean_ms();
-  s->p99_latency_ms = latency.quantile_ms(0.99);
-  s->max_latency_ms = latency.max_ms();
-  s->peak_rss_mb = platform::peak_rss_mb();
+void FrameLoop::fill_timing() {
+  stats.fps = stats.wall_s > 0 ? stats.frames / stats.wall_s : 0.0;
+  stats.mean_latency_ms = latency.mean_ms();
+  stats.p99_latency_ms = latency.quantile_ms(0.99);
+  stats.max_latency_ms = latency.max_ms();
+  stats.peak_rss_mb = platform::peak_rss_mb();
 }
 
 std::string format_run_summary(const RunStats& s, bool realtime,

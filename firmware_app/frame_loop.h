@@ -86,16 +86,15 @@ struct FrameLoop {
 
   // The processor's start(), every frame to the end of the stream or a
   // source error, the processor's stop(). Fills stats (frames, states,
-  // wall time, latencies, allocations); the caller adds the error and RSS.
+  // wall time, allocations); the caller adds the error.
   void run();
+  // After run(), on the owner thread: fps and latency mean/p99/max from the
+  // histogram and wall time, and the process's peak RSS, into stats.
+  void fill_timing();
 };
 
 // The tracker's state as frames.csv spells it.
 FrameState frame_state(TrackState s);
-
-// Wall time, fps, latency mean/p99/max from the histogram and the
-// process's peak RSS into stats (frames already counted).
-void fill_timing(const LatencyHistogram& latency, double wall_s, RunStats* stats);
 
 // summary.json text for stats (the fields of docs/sequence-format.md, the
 // run's own, then extra), with "error" last when the run broke off.

@@ -48,7 +48,7 @@ Result<RunStats> run_replay(const LoadedSequence& sequence, FrameProcessor& proc
   RunStats& stats = loop->stats;
   if (loop->source_error) stats.error = capture->error();
   if (Status s = writer->finish(); !s && stats.error.empty()) stats.error = s.message();
-  fill_timing(loop->latency, stats.wall_s, &stats);
+  loop->fill_timing();
   if (Status s = write_file(options.out_dir / "summary.json", format_run_summary(stats, options.realtime, extra)); !s)
     return Error{s.message()};
   return stats;

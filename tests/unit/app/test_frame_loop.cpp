@@ -120,7 +120,7 @@ TEST_CASE("frame loop: every frame counted by state and written, a source error 
   for (std::string line; std::getline(csv, line);) lines.push_back(line);
   REQUIRE(lines.size() == 11);
   CHECK(lines[4].rfind("3,0.75,lost,0,", 0) == 0);
-  fill_timing(loop.latency, loop.stats.wall_s, &loop.stats);
+  loop.fill_timing();
   loop.stats.error = source.error();
   const std::string json = format_run_summary(loop.stats, false, {{"width", 8}});
   CHECK(json.find("\"frames\": 10") != std::string::npos);
