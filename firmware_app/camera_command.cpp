@@ -175,9 +175,7 @@ int run_camera(Args argv) {
     return 2;
   }
   TrackerConfig tc;
-  Status settings = apply_settings(args.settings, &tc);
-  if (settings) settings = validate_tracker_settings(tc);
-  if (Status s = settings; !s) {
+  if (Status s = apply_settings(args.settings, &tc); !s) {
     std::fprintf(stderr, "scopetrack: %s\n", s.message().c_str());
     return 2;
   }

@@ -29,8 +29,7 @@ namespace {
 
 struct ReplayArgs {
   std::string sequence, out;
-  SettingsArgs settings;    // --config FILE, --set KEY=VALUE (firmware_app/settings_args.h)
-  int ba_lag = -1;          // --ba-lag N: deterministic BA hand-back (the key ba_lag_frames); -1: the settings'
+  SettingsArgs settings;    // --config FILE, --set KEY=VALUE, --ba-lag N (last: the key ba_lag_frames)
   bool realtime = false;    // --realtime: paced at the sequence's fps
   int ring_slots = 6;       // --ring N: capture ring slots
   std::string stream;       // --stream ENDPOINT: serve consoles (firmware_app/stream_link.h)
@@ -53,6 +52,7 @@ bool parse_args(Args args, ReplayArgs* a) {
     std::fprintf(stderr, "scopetrack: %s takes %s\n", args[static_cast<std::size_t>(*i - 1)], wants);
     return false;
   };
+  int ba_lag = 0;  // --ba-lag N: 0 keeps the settings' ba_lag_frames
   for (int i = 1; i < argc; ++i) {
     const char* arg = args[static_cast<std::size_t>(i)];
     const bool has_value = i + 1 < argc;
@@ -64,7 +64,7 @@ bool parse_args(Args args, ReplayArgs* a) {
     } else if (!std::strcmp(arg, "--realtime")) {
       a->realtime = true;
     } else if (!std::strcmp(arg, "--ba-lag") && has_value) {
-      if (!int_value(&i, 1, 1000, "a whole number of frames in 1..1000", &a->ba_lag)) return false;
+      if (!int_value(&i, 1, 1000, "a whole number of frames in 1..1000", &ba_lag)) return false;
     } else if (!std::strcmp(arg, "--ring") && has_value) {
       if (!int_value(&i, 2, kMaxRingSlots, "a slot count in 2..64", &a->ring_slots)) return false;
     } else if (!std::strcmp(arg, "--stream") && has_value) {
@@ -83,6 +83,7 @@ bool parse_args(Args args, ReplayArgs* a) {
     std::fprintf(stderr, "scopetrack: --sequence DIR and --out DIR are both required\n");
     return false;
   }
+  if (ba_lag > 0) a->settings.sets.emplace_back("ba_lag_frames", std::to_string(ba_lag));
   return true;
 }
 
@@ -91,8 +92,6 @@ bool parse_args(Args args, ReplayArgs* a) {
 Result<TrackerConfig> tracker_config(const LoadedSequence& seq, const ReplayArgs& a) {
   TrackerConfig c;
   if (Status s = apply_settings(a.settings, &c); !s) return Error{s.message()};
-  if (a.ba_lag >= 0) c.ba_lag_frames = a.ba_lag;
-  if (Status s = validate_tracker_settings(c); !s) return Error{s.message()};
   c.width = seq.config.width;
   c.height = seq.config.height;
   c.now_ns = &platform::monotonic_ns;

@@ -28,14 +28,14 @@ bool take_settings_arg(Args args, int* i, SettingsArgs* settings, bool* bad) {
     settings->config_file = std::string(value);
     return true;
   }
-  const std::size_t eq = value.find('=');
-  if (eq == std::string_view::npos || eq == 0) {
+  std::string_view key, setting;
+  if (!split_setting_assignment(value, &key, &setting)) {
     std::fprintf(stderr, "scopetrack: --set takes KEY=VALUE (a key of scopetrack --print-config), not '%.*s'\n",
                  static_cast<int>(value.size()), value.data());
     *bad = true;
     return true;
   }
-  settings->sets.emplace_back(std::string(value.substr(0, eq)), std::string(value.substr(eq + 1)));
+  settings->sets.emplace_back(std::string(key), std::string(setting));
   return true;
 }
 
@@ -48,7 +48,7 @@ Status apply_settings(const SettingsArgs& settings, TrackerConfig* config) {
   }
   for (const auto& [key, value] : settings.sets)
     if (Status s = apply_tracker_setting(key, value, config); !s) return make_error("--set " + s.message());
-  return Status::Ok();
+  return validate_tracker_settings(*config);
 }
 
 int run_print_config(Args args) {

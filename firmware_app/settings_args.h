@@ -25,8 +25,9 @@ struct SettingsArgs {
 // is malformed. Otherwise leaves everything alone and returns false.
 bool take_settings_arg(Args args, int* i, SettingsArgs* settings, bool* bad);
 
-// The tracker's settings: TrackerConfig's defaults, then the file, then each
-// --set. An error names the file, the line and the key.
+// The tracker's settings: config as given (its defaults), then the file,
+// then each --set, then the checks across keys (validate_tracker_settings).
+// An error names the file, the line and the key.
 Status apply_settings(const SettingsArgs& settings, TrackerConfig* config);
 
 // scopetrack --print-config: the settings file of the defaults, every key

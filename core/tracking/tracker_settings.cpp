@@ -2,7 +2,6 @@
 
 #include <array>
 #include <charconv>
-#include <cmath>
 #include <type_traits>
 
 #include "core/base/capacity.h"
@@ -252,6 +251,14 @@ Status apply_tracker_setting(std::string_view key, std::string_view value, Track
   const SettingKey* k = find_key(key);
   if (!k) return make_error("unknown setting " + quote_bytes(key) + " (scopetrack --print-config lists them)");
   return set_value(*k, trim(value), config);
+}
+
+bool split_setting_assignment(std::string_view text, std::string_view* key, std::string_view* value) {
+  const std::size_t eq = text.find('=');
+  if (eq == std::string_view::npos || eq == 0) return false;
+  *key = text.substr(0, eq);
+  *value = text.substr(eq + 1);
+  return true;
 }
 
 Status read_tracker_settings(std::string_view text, TrackerConfig* config) {

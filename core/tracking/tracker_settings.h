@@ -41,6 +41,10 @@ std::span<const SettingKey> tracker_setting_keys();
 // line's --set KEY=VALUE). Errors name the key and the allowed range.
 Status apply_tracker_setting(std::string_view key, std::string_view value, TrackerConfig* config);
 
+// "KEY=VALUE" (a command line's --set) split at its first '='. False when
+// there is no '=' or the key is empty.
+bool split_setting_assignment(std::string_view text, std::string_view* key, std::string_view* value);
+
 // Reads a settings file's text into config: only the keys it names change.
 // Errors name the line, the key and the allowed range.
 Status read_tracker_settings(std::string_view text, TrackerConfig* config);

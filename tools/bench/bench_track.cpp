@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "bench.h"
@@ -68,10 +69,10 @@ bool parse_track_args(const Options& opt, TrackArgs* a) {
       auto text = read_file(opt.args[++i], 1 << 20);
       setting = text ? read_tracker_settings(text.value(), &a->config) : Status(text.error());
     } else if (k == "--set" && v) {
-      const std::string& kv = opt.args[++i];
-      const std::size_t eq = kv.find('=');
-      setting = eq == std::string::npos ? Status(make_error("--set takes KEY=VALUE"))
-                                        : apply_tracker_setting(kv.substr(0, eq), kv.substr(eq + 1), &a->config);
+      std::string_view key, value;
+      setting = split_setting_assignment(opt.args[++i], &key, &value)
+                    ? apply_tracker_setting(key, value, &a->config)
+                    : Status(make_error("--set takes KEY=VALUE"));
     } else return false;
     if (!setting) {
       std::fprintf(stderr, "bench track: %s: %s\n", k.c_str(), setting.message().c_str());
