@@ -299,23 +299,20 @@ double SchurSolver::gradient_max_norm() const {
   return m;
 }
 
-double SchurSolver::parameter_norm() const {
-  double sq = free_focal_ ? x_focal_ * x_focal_ : 0.0;
+// The norm of one set of values over the free parameters: the focal scale
+// when free, the free poses, the active points.
+double SchurSolver::free_norm(double focal, const std::vector<Vec6>& pose, const std::vector<Vec3>& point) const {
+  double sq = free_focal_ ? focal * focal : 0.0;
   for (int k = 0; k < keyframe_count_; ++k)
-    if (column_[static_cast<std::size_t>(k)] >= 0) sq += x_pose_[static_cast<std::size_t>(k)].squaredNorm();
+    if (column_[static_cast<std::size_t>(k)] >= 0) sq += pose[static_cast<std::size_t>(k)].squaredNorm();
   for (int a = 0; a < active_count_; ++a)
-    sq += x_point_[static_cast<std::size_t>(active_points_[static_cast<std::size_t>(a)])].squaredNorm();
+    sq += point[static_cast<std::size_t>(active_points_[static_cast<std::size_t>(a)])].squaredNorm();
   return std::sqrt(sq);
 }
 
-double SchurSolver::step_norm() const {
-  double sq = free_focal_ ? step_focal_ * step_focal_ : 0.0;
-  for (int k = 0; k < keyframe_count_; ++k)
-    if (column_[static_cast<std::size_t>(k)] >= 0) sq += step_pose_[static_cast<std::size_t>(k)].squaredNorm();
-  for (int a = 0; a < active_count_; ++a)
-    sq += step_point_[static_cast<std::size_t>(active_points_[static_cast<std::size_t>(a)])].squaredNorm();
-  return std::sqrt(sq);
-}
+double SchurSolver::parameter_norm() const { return free_norm(x_focal_, x_pose_, x_point_); }
+
+double SchurSolver::step_norm() const { return free_norm(step_focal_, step_pose_, step_point_); }
 
 // The LM step at the current linearization: (J^T J + mu D) step = -g with
 // D the clamped diagonal of J^T J (taken anew after an accepted step, kept

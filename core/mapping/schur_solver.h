@@ -135,6 +135,7 @@ class SchurSolver {
   double evaluate_prior(bool candidate, bool linearize);
   void clear_normal_equations();
   double gradient_max_norm() const;
+  double free_norm(double focal, const std::vector<Vec6>& pose, const std::vector<Vec3>& point) const;
   double parameter_norm() const;
   double step_norm() const;
   bool compute_step(double radius, bool new_diagonal, const SchurSolverOptions& o);
