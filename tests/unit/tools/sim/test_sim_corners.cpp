@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "hal/capture/y4m_reader.h"
+#include "tests/support/real_frame.h"
 #include "tests/support/support.h"
 #include "tools/sim/corner_density.h"
 #include "tools/sim/photo_texture.h"
@@ -28,12 +29,7 @@ constexpr int kThresholds[2] = {20, 7};
 // The real frame's luma at 1280x720 (the sim's apparent resolution) and
 // the liver rectangle scaled with it.
 cv::Mat real_luma_720p(cv::Rect* liver) {
-  Y4mReader reader;
-  REQUIRE(reader.open(test::shared_data("real/laparoscopy_liver_1080p.y4m")));
-  FrameRef f;
-  REQUIRE(reader.read_frame(&f) == ReadResult::kFrame);
-  const cv::Mat y(f.y.height, f.y.width, CV_8U, const_cast<std::uint8_t*>(f.y.data),
-                    static_cast<std::size_t>(f.y.stride));
+  const cv::Mat y = test::real_frame_luma();
   cv::Mat out;
   cv::resize(y, out, cv::Size(1280, 720), 0, 0, cv::INTER_AREA);
   const double s = 1280.0 / y.cols;

@@ -13,8 +13,8 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "hal/capture/y4m_reader.h"
 #include "hal/storage/mesh_file.h"
+#include "tests/support/real_frame.h"
 #include "tests/support/support.h"
 #include "tools/sim/corner_density.h"
 #include "tools/sim/renderer.h"
@@ -124,12 +124,7 @@ TEST_CASE("sim smooth: wet highlights saturate a share of the organ in many smal
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   // The real frame: saturated share of its lit disc (luma > 24). Its Y4M is
   // video range (16..235): full-range 250 is 231 there.
-  Y4mReader reader;
-  REQUIRE(reader.open(test::shared_data("real/laparoscopy_liver_1080p.y4m")));
-  FrameRef f;
-  REQUIRE(reader.read_frame(&f) == ReadResult::kFrame);
-  const cv::Mat y(f.y.height, f.y.width, CV_8U, const_cast<std::uint8_t*>(f.y.data),
-                  static_cast<std::size_t>(f.y.stride));
+  const cv::Mat y = test::real_frame_luma();
   const double real_share = static_cast<double>(cv::countNonZero(y >= 231)) / cv::countNonZero(y > 24);
   const SimOptions smooth = smooth_options(300);
   SimOptions textured = smooth;
