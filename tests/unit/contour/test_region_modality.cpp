@@ -1,0 +1,140 @@
+// RegionModality: the outline of a textureless organ (a flat-coloured CT
+// liver on a background of another colour) measures the camera pose.
+#include <doctest/doctest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "core/contour/region_modality.h"
+#include "core/raster/rasterizer.h"
+#include "hal/storage/mesh_file.h"
+#include "tests/support/raster_scene.h"
+#include "tests/support/support.h"
+
+using namespace st;
+
+namespace {
+
+// A 4:2:0 frame of the organ (flat colour with a brightness falloff) on a
+// background of another colour, with sensor noise.
+struct Frame {
+  int w = 0, h = 0;
+  std::vector<std::uint8_t> y, u, v;
+  GrayView luma() const { return {y.data(), w, h, w}; }
+  ChromaView chroma() const { return {GrayView{u.data(), (w + 1) / 2, (h + 1) / 2, (w + 1) / 2},
+                                      GrayView{v.data(), (w + 1) / 2, (h + 1) / 2, (w + 1) / 2}}; }
+};
+
+Frame render_flat(const Mesh& mesh, const Pinhole& K, const SE3& T, std::uint64_t seed) {
+  MeshRasterizer r;
+  REQUIRE(r.configure(mesh, test::raster_config(K)));
+  r.render(T, K);
+  Frame f;
+  f.w = K.width;
+  f.h = K.height;
+  const int cw = (f.w + 1) / 2, ch = (f.h + 1) / 2;
+  f.y.assign(static_cast<std::size_t>(f.w * f.h), 0);
+  f.u.assign(static_cast<std::size_t>(cw * ch), 0);
+  f.v.assign(static_cast<std::size_t>(cw * ch), 0);
+  std::mt19937 gen(static_cast<std::uint32_t>(seed));
+  std::normal_distribution<double> nd;
+  const auto normal = [&] { return nd(gen); };
+  const auto m = r.mask();
+  for (int y = 0; y < f.h; ++y)
+    for (int x = 0; x < f.w; ++x) {
+      const double falloff = 1.0 - 0.3 * (std::hypot(x - K.cx, y - K.cy) / K.width);
+      const double base = m(x, y) ? 95.0 : 165.0;
+      const double val = base * falloff + 3.0 * normal();
+      f.y[static_cast<std::size_t>(y * f.w + x)] = static_cast<std::uint8_t>(std::clamp(val, 0.0, 255.0));
+    }
+  for (int y = 0; y < ch; ++y)
+    for (int x = 0; x < cw; ++x) {
+      // 4:2:0 chroma: the mean over its 2x2 luma pixels.
+      double organ = 0;
+      for (int k = 0; k < 4; ++k) organ += m(std::min(2 * x + (k & 1), f.w - 1), std::min(2 * y + (k >> 1), f.h - 1)) ? 0.25 : 0.0;
+      f.u[static_cast<std::size_t>(y * cw + x)] = static_cast<std::uint8_t>(std::lround(92 + 20 * organ + 2 * normal()));
+      f.v[static_cast<std::size_t>(y * cw + x)] = static_cast<std::uint8_t>(std::lround(150 + 18 * organ + 2 * normal()));
+    }
+  return f;
+}
+
+struct LiverView {
+  Mesh mesh;
+  Pinhole K{800.0, 800.0, 479.5, 269.5, 960, 540};
+  SE3 T;
+};
+
+LiverView liver_view() {
+  auto m = load_mesh_file(test::shared_data("liver/liver.ply"), nullptr);
+  REQUIRE_MESSAGE(m, (m ? std::string() : m.message()));
+  LiverView v;
+  v.mesh = std::move(m).value();
+  // Far enough that the whole outline is in view (about 2/3 of the image).
+  v.T = test::look_at(test::bbox_centre(v.mesh), Vec3(0.2, -0.3, 1.0).normalized(), 260.0, 0.3);
+  return v;
+}
+
+}  // namespace
+
+TEST_CASE("contour: the outline alone recovers a perturbed pose of a textureless organ") {
+  const LiverView v = liver_view();
+  const CameraModel camera(v.K, Distortion{});
+  const Frame f = render_flat(v.mesh, v.K, v.T, 7);
+  RegionModality region;
+  REQUIRE(region.configure(v.mesh, v.K.width, v.K.height));
+  region.learn(f.luma(), f.chroma(), GrayView{}, camera, v.T);
+  REQUIRE(region.has_colour_model());
+  std::mt19937 gen(11);
+  std::normal_distribution<double> nd;
+  for (int trial = 0; trial < 6; ++trial) {
+    CAPTURE(trial);
+    // 2 deg and 8 mm, in random directions.
+    Vec3 w(nd(gen), nd(gen), nd(gen));
+    Vec3 t(nd(gen), nd(gen), nd(gen));
+    Vec6 xi;
+    xi << w.normalized() * (2.0 * M_PI / 180.0), t.normalized() * 8.0;
+    SE3 T = SE3::exp(xi) * v.T;
+    const PoseDelta before = pose_delta(T, v.T);
+    ContourFit fit;
+    REQUIRE(region.estimate(f.luma(), f.chroma(), GrayView{}, camera, &T, &fit));
+    const PoseDelta after = pose_delta(T, v.T);
+    // The organ's centre in the camera frame: where the overlay draws it.
+    const Vec3 c = test::bbox_centre(v.mesh);
+    const double organ_mm = (T * c - v.T * c).norm();
+    MESSAGE("from " << before.angle_deg << " deg, organ " << (SE3::exp(xi) * v.T * c - v.T * c).norm() << " mm off to "
+                    << after.angle_deg << " deg, " << organ_mm << " mm, " << fit.lines << " lines, rms " << fit.rms_px
+                    << " px");
+    CHECK(fit.lines >= 100);
+    CHECK(after.angle_deg < 0.5);
+    CHECK(organ_mm < 1.0);
+  }
+}
+
+TEST_CASE("contour: no evidence where the valid mask is off, no lines without a colour model") {
+  const LiverView v = liver_view();
+  const CameraModel camera(v.K, Distortion{});
+  const Frame f = render_flat(v.mesh, v.K, v.T, 3);
+  RegionModality region;
+  REQUIRE(region.configure(v.mesh, v.K.width, v.K.height));
+  CHECK(region.measure(f.luma(), f.chroma(), GrayView{}, camera, v.T, 1) == 0);  // no colour model yet
+  region.learn(f.luma(), f.chroma(), GrayView{}, camera, v.T);
+  const int all = region.measure(f.luma(), f.chroma(), GrayView{}, camera, v.T, 1);
+  // The field stop (or an instrument) over the left half: only the right
+  // half's outline is measured.
+  std::vector<std::uint8_t> valid(static_cast<std::size_t>(v.K.width / 2 * (v.K.height / 2)), 255);
+  const GrayView vm{valid.data(), v.K.width / 2, v.K.height / 2, v.K.width / 2};
+  for (int y = 0; y < vm.height; ++y)
+    for (int x = 0; x < vm.width / 2; ++x) valid[static_cast<std::size_t>(y * vm.width + x)] = 0;
+  const int right = region.measure(f.luma(), f.chroma(), vm, camera, v.T, 1);
+  MESSAGE(all << " lines, " << right << " with the left half masked");
+  CHECK(all >= 100);
+  CHECK(right > 0);
+  CHECK(right < 0.8 * all);
+  // Non-finite pose: nothing measured.
+  SE3 bad = v.T;
+  bad = SE3(bad.rotation(), Vec3(std::nan(""), 0, 0));
+  CHECK(region.measure(f.luma(), f.chroma(), GrayView{}, camera, bad, 1) == 0);
+}
