@@ -37,6 +37,8 @@ FrameRow record_frame(int frame, double timestamp_s, const TrackResult& r, doubl
   stats->initialised += r.state == TrackState::kInitialised ? 1 : 0;
   stats->relocalised += r.state == TrackState::kRelocalised ? 1 : 0;
   stats->confirmed += r.confirmed_by_alignment && row.pose_valid ? 1 : 0;
+  stats->by_outline += r.by_outline && row.pose_valid ? 1 : 0;
+  if (r.outline_tried) ++stats->outline_verdicts[static_cast<std::size_t>(r.agreement)];
   return row;
 }
 
@@ -104,6 +106,11 @@ std::string format_run_summary(const RunStats& s, bool realtime,
                {"initialised_frames", s.initialised},
                {"relocalised_frames", s.relocalised},
                {"confirmed_frames", s.confirmed},
+               {"outline_frames", s.by_outline},
+               {"outline_no_outline", s.outline_verdicts[static_cast<std::size_t>(Agreement::kNoOutline)]},
+               {"outline_loose", s.outline_verdicts[static_cast<std::size_t>(Agreement::kOutlineLoose)]},
+               {"outline_no_shading", s.outline_verdicts[static_cast<std::size_t>(Agreement::kNoShading)]},
+               {"outline_disagree", s.outline_verdicts[static_cast<std::size_t>(Agreement::kDisagree)]},
                {"max_latency_ms", s.max_latency_ms},
                {"wall_time_s", s.wall_s},
                {"realtime", realtime ? 1.0 : 0.0},

@@ -11,6 +11,7 @@
 // latencies go into a fixed histogram.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <string>
@@ -56,6 +57,10 @@ struct RunStats {
   int frames = 0;  // frames processed (rows in frames.csv)
   int tracked = 0, lost = 0, initialised = 0, relocalised = 0;  // tracked: frames with a pose
   int confirmed = 0;  // reported under the relaxed inlier ratio, confirmed by direct alignment
+  int by_outline = 0;  // reported from the outline and the shading (no feature pose)
+  // Frames without a feature pose on which the outline and the shading were
+  // tried, by verdict (core/tracking/modality_agreement.h), kAgree first.
+  std::array<int, 5> outline_verdicts{};
   double wall_s = 0, fps = 0;
   double mean_latency_ms = 0, p99_latency_ms = 0, max_latency_ms = 0;
   double peak_rss_mb = 0;

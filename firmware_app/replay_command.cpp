@@ -178,6 +178,7 @@ int run_replay(Args argv) {
   opt.summary_extra = {{"use_mask", tc.use_mask ? 1.0 : 0.0},
                        {"use_occluder_mask", tc.use_occluder_mask ? 1.0 : 0.0}, {"use_ba", tc.use_ba ? 1.0 : 0.0},
                        {"use_image_motion", tc.use_image_motion ? 1.0 : 0.0},
+                       {"use_contour", tc.use_contour ? 1.0 : 0.0},
                        {"w_shape", tc.ba.w_shape},
                        {"ba_lag_frames", tc.ba_lag_frames}, {"fast_reference_luma", tc.fast_reference_luma},
                        {"fast_reference_contrast", tc.fast_reference_contrast},

@@ -300,7 +300,7 @@ bool RegionModality::estimate(GrayView luma, ChromaView chroma, GrayView valid, 
                               ContourFit* fit, int min_lines) {
   if (!model_ready_ || !T->all_finite()) return false;
   SE3 Tc = *T;
-  for (const int factor : {4, 2, 1, 1}) {
+  for (const int factor : {8, 4, 2, 1, 1}) {
     if (measure(luma, chroma, valid, camera, Tc, factor) < min_lines) return false;
     double lambda = 1e-4;
     double c = cost(Tc);
@@ -333,11 +333,8 @@ bool RegionModality::estimate(GrayView luma, ChromaView chroma, GrayView valid, 
 void RegionModality::learn(GrayView luma, ChromaView chroma, GrayView valid, const CameraModel& camera,
                            const SE3& T, float rate) {
   if (!configured_ || luma.width != width_ || luma.height != height_ || !T.all_finite()) return;
-  if (placed_ == 0 || !model_ready_) {
-    K_ = camera.pinhole();
-    if (place_lines(camera, T) == 0) return;
-    sample_lines(luma, chroma, valid, base_step_);
-  }
+  if (place_lines(camera, T) == 0) return;
+  sample_lines(luma, chroma, valid, base_step_);
   std::fill(fg_new_.begin(), fg_new_.end(), 0.f);
   std::fill(bg_new_.begin(), bg_new_.end(), 0.f);
   double nf = 0, nb = 0;

@@ -100,12 +100,11 @@ class RegionModality {
   bool estimate(GrayView luma, ChromaView chroma, GrayView valid, const CameraModel& camera, SE3* T,
                 ContourFit* fit, int min_lines = 30);
 
-  // Learns the colour models from the lines last measured, split at the
-  // outline's position at pose T (a pose the tracker reports): samples more
-  // than 1.5 steps inside are the organ's, more than 1.5 steps outside the
-  // background's. Blended in with rate `rate` (the first learn sets them).
-  // If no lines were measured (no colour model yet), places lines at T
-  // first (one render).
+  // Learns the colour models from lines placed at pose T (a pose the
+  // tracker reports; one render) at the base step: samples more than 1.5
+  // steps inside the outline are the organ's, more than 1.5 steps outside
+  // the background's. Blended in with rate `rate` (the first learn sets
+  // them).
   void learn(GrayView luma, ChromaView chroma, GrayView valid, const CameraModel& camera, const SE3& T,
              float rate = 0.2f);
 

@@ -360,6 +360,7 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
     }
   }
   const double f_level = K.fx * inv_scale, inv_z = z_n > 0 ? z_n / z_sum : 0.0;
+  Mat8 H_last = Mat8::Zero();
   for (int it = 0; it < kMaxIterations; ++it) {
     ++s->iterations;
     Mat8 H = Mat8::Zero();
@@ -382,6 +383,7 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
       H.selfadjointView<Eigen::Lower>().rankUpdate(J, wgt);  // the lower half: all LDLT reads
       g.noalias() += wgt * r * J;
     }
+    H_last = H.selfadjointView<Eigen::Lower>();
     bool improved = false;
     for (int attempt = 0; attempt < 6 && !improved; ++attempt) {
       Mat8 A = H;
@@ -410,6 +412,15 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
     if (!improved) break;
   }
   s->used = used;
+  // The pose's information: the brightness parameters eliminated (Schur
+  // complement), whitened by the robust scale.
+  const Eigen::Matrix2d C = H_last.bottomRightCorner<2, 2>();
+  if (std::abs(C.determinant()) > 1e-12) {
+    const Eigen::Matrix<double, 6, 2> B = H_last.topRightCorner<6, 2>();
+    s->information = (H_last.topLeftCorner<6, 6>() - B * C.inverse() * B.transpose()) / (sigma * sigma);
+  } else {
+    s->information = Mat6::Zero();
+  }
   // The fit at the end: the median absolute residual of the points still
   // in view (comparable between starts on the same reference and image).
   median_abs_residual(*T, *a, *b, &s->residual_median);

@@ -59,6 +59,12 @@ struct DirectAlignSummary {
   double residual_median = 0;
   double gain = 1;  // the estimate's contrast change (current ~ gain * reference + offset)
   int level = 0;    // the level whose estimate was returned (0: the finest)
+  // The pose's information at the estimate: J^T W J of the pose over the
+  // points (the brightness change eliminated), divided by the squared
+  // robust residual scale, in the tangent [omega (rad); v (mm)] of the
+  // left perturbation. Pixels of the small blurred image are not
+  // independent: a caller that fuses it scales it down.
+  Mat6 information = Mat6::Zero();
 };
 
 class DirectAligner {

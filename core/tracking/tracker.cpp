@@ -57,6 +57,14 @@ Status validate_tracker_settings(const TrackerConfig& c) {
     return err("fast_reference_luma must be in [0, 255] (0: off)");
   if (!(c.fast_reference_contrast >= 0 && c.fast_reference_contrast <= 255))
     return err("fast_reference_contrast must be in [0, 255] (0: off)");
+  if (c.contour_min_lines < 6 || c.contour_min_lines > RegionModality::kMaxLines)
+    return err("contour_min_lines must be in [6, " + std::to_string(RegionModality::kMaxLines) + "]");
+  if (!(c.contour_max_sigma_px >= 0 && c.contour_max_sigma_px <= 1000))
+    return err("contour_max_sigma_px must be in [0, 1000]");
+  if (!(c.contour_agreement_px >= 0 && c.contour_agreement_px <= 1000))
+    return err("contour_agreement_px must be in [0, 1000]");
+  if (!(c.photometric_weight >= 0 && c.photometric_weight <= 1000))
+    return err("photometric_weight must be in [0, 1000]");
   if (!(c.confirm_agreement_px >= 0 && c.confirm_agreement_px <= 1000))
     return err("confirm_agreement_px must be in [0, 1000]");
   if (!(c.max_rms_px > 0) || !(c.max_jump_deg > 0) || !(c.max_jump_mm > 0))
@@ -114,6 +122,8 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
     rendered = &simplified;
   }
   if (Status s = raster_.configure(*rendered, rc); !s.ok()) return make_error("tracker: raster: " + s.message());
+  if (Status s = region_.configure(*rendered, config.width, config.height); !s.ok())
+    return make_error("tracker: " + s.message());
   if (Status s = valid_mask_.configure(ValidMaskConfig{}, config.width, config.height); !s.ok())
     return make_error("tracker: valid mask: " + s.message());
   // The occluder mask is at the chroma's resolution, the valid mask's (1/2).
@@ -137,6 +147,8 @@ Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, con
     if (Status s = aligner_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
       return make_error("tracker: " + s.message());
     if (Status s = anchor_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
+      return make_error("tracker: " + s.message());
+    if (Status s = shading_ref_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
       return make_error("tracker: " + s.message());
   }
   if (Status s = solver_.configure(kMaxKeypoints); !s.ok()) return make_error("tracker: pose: " + s.message());
@@ -187,6 +199,9 @@ void TrackerImpl::start() {
   motion_.reset();
   aligner_.forget_reference();
   anchor_.forget_reference();
+  shading_ref_.forget_reference();
+  region_.reset();
+  frames_since_learn_ = 0;
   ref_keyframe_ = -1;
   reloc_keyframes_.reset();
   ba_.reset();
@@ -206,6 +221,8 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
   const double t_valid = now_ms();
   bool occluder_refused = false;
   const int occluder_pixels = remove_occluders_from_valid(luma, chroma, &occluder_refused);
+  luma_ = luma;
+  chroma_ = chroma;
   const double t_occluder = now_ms();
   if (!initialised_) {
     r = initialise(luma, frame_index);

@@ -22,6 +22,7 @@
 #include "core/mesh/mesh.h"
 #include "core/base/result.h"
 #include "core/geometry/se3.h"
+#include "core/tracking/modality_agreement.h"
 
 namespace st {
 
@@ -34,7 +35,7 @@ enum class TrackState : std::uint8_t {
 const char* to_string(TrackState s);
 
 // Stage timings of one step, milliseconds (0 where the stage did not run).
-enum class Stage : int { kPyramid, kOccluder, kRaster, kDetect, kDescribe, kMatch, kPose, kMap, kReloc, kTotal, kCount };
+enum class Stage : int { kPyramid, kOccluder, kRaster, kDetect, kDescribe, kMatch, kPose, kMap, kReloc, kContour, kTotal, kCount };
 const char* to_string(Stage s);
 using StageTimes = std::array<double, static_cast<int>(Stage::kCount)>;
 
@@ -130,6 +131,23 @@ struct TrackerConfig {
   double confirm_agreement_px = 3.0;
   double anchor_min_inlier_ratio = 0.4;
   double confirmed_keyframe_min_anchored = 0.5;
+  // Smooth tissue: when the features give no pose, the organ's outline
+  // (core/contour/region_modality.h) and its shading (direct alignment
+  // against the last reported frame, through the mesh's depth) each
+  // measure it. The frame is reported only when the two agree
+  // (core/tracking/modality_agreement.h): at least contour_min_lines
+  // outline lines measured, the outline alone fixing the organ in view to
+  // contour_max_sigma_px (1 sigma, RMS over the organ, level-0 px), and
+  // the outline's pose alone and the shading's pose alone putting the
+  // organ within contour_agreement_px of each other. The reported
+  // pose then minimises both (the shading's information scaled by
+  // photometric_weight: its pixels are not independent). Such a frame
+  // adds no keyframe.
+  bool use_contour = true;
+  int contour_min_lines = 40;
+  double contour_max_sigma_px = 1.5;
+  double contour_agreement_px = 6.0;
+  double photometric_weight = 0.1;
   // Descriptor matching (core/features/orb_matcher.h): max_distance (of 256
   // bits), the ratio test, the orientation check.
   MatchConfig matching;
@@ -243,6 +261,18 @@ struct TrackResult {
   double whitened_rms_px = 0;     // octave-normalised inlier RMS (what max_rms_px gates)
   double mask_agreement = 0;
   bool confirmed_by_alignment = false;  // reported under the relaxed ratio, confirmed by direct alignment
+  // The outline and the shading measured this frame (no feature pose): lines
+  // measured, their RMS at the outline's own pose, and how far apart the
+  // outline's and the shading's poses put the organ (level-0 px; -1: not
+  // compared). outline_tried: they were measured this frame, agreement
+  // says what was found; by_outline: the pose reported is theirs.
+  bool outline_tried = false;
+  bool by_outline = false;
+  int contour_lines = 0;
+  double contour_rms_px = 0;
+  double contour_sigma_px = -1;
+  double modality_agreement_px = -1;
+  Agreement agreement = Agreement::kNoOutline;
   bool keyframe = false;          // a keyframe was inserted this frame
   int map_points = 0, keyframes = 0;
   StageTimes times_ms{};

@@ -18,6 +18,7 @@
 
 #include "core/mapping/ba_channel.h"
 #include "core/geometry/camera.h"
+#include "core/contour/region_modality.h"
 #include "core/base/capacity.h"
 #include "core/motion/direct_alignment.h"
 #include "core/features/feature_grid.h"
@@ -58,8 +59,11 @@ class TrackerImpl {
   bool weak_first_pass(bool solved, const PoseEstimate& e) const;
   double image_shift_px(const SE3& a, const SE3& b) const;
   double view_difference_px(const SE3& a, const SE3& b) const;
+  double view_sigma_px(const Mat6& cov, const SE3& T) const;
   SE3 motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted);
-  bool dead_reckon(SE3* T_camera_model, const SE3& T_alternative);
+  bool dead_reckon(SE3* T_camera_model, const SE3& T_alternative, DirectAlignSummary* fit = nullptr);
+  bool track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackResult* r);
+  void learn_colours(const SE3& T, float rate, bool force = false);
   int match_local_map(float radius_px);
   bool solve_pose(SE3* T_camera_model, PoseEstimate* e);
   bool track_from(const SE3& T_predicted, float first_radius_px, PoseEstimate* e, TrackResult* r);
@@ -105,7 +109,13 @@ class TrackerImpl {
   ImageMotion motion_;  // whole-view shift between frames: rotation prior under fast turns
   DirectAligner aligner_;  // while lost: the camera's motion from the images and the mesh depth
   DirectAligner anchor_;   // the last frame that passed the normal gates: confirms weak poses
+  DirectAligner shading_ref_;  // the last reported frame: the shading's measurement without features
   int align_level_ = 0;    // the ORB pyramid level it works on (about 320 pixels wide)
+  RegionModality region_;  // the organ's outline: smooth tissue without features
+  static constexpr int kLearnEvery = 4;
+  int frames_since_learn_ = 0;
+  GrayView luma_;          // this frame's, for the stages that need it after step()
+  ChromaView chroma_;
   PoseSolver solver_;
   PnpRansac ransac_;
   TrackingMap map_;

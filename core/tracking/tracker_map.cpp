@@ -37,7 +37,9 @@ TrackResult TrackerImpl::initialise(GrayView luma, int frame_index) {
   if (config_.use_image_motion) {  // the registered pose: dead reckoning's and confirmation's first reference
     aligner_.keep_reference(orb_.pyramid().level(align_level_), valid_view_, T_init_);
     anchor_.keep_reference(orb_.pyramid().level(align_level_), valid_view_, T_init_);
+    if (config_.use_contour) shading_ref_.keep_reference(orb_.pyramid().level(align_level_), valid_view_, T_init_);
   }
+  learn_colours(T_init_, 1.0f, true);  // the registered pose: the outline's first colour models
   r.state = TrackState::kInitialised;
   r.pose_valid = true;
   r.T_camera_model = T_init_;

@@ -25,6 +25,7 @@ const char* to_string(Stage s) {
     case Stage::kPose: return "pose";
     case Stage::kMap: return "map";
     case Stage::kReloc: return "reloc";
+    case Stage::kContour: return "contour";
     case Stage::kTotal: return "total";
     case Stage::kCount: break;
   }

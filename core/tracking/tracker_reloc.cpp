@@ -93,6 +93,14 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
   if (found) {
     strict_frames_left_ = found_confirmed ? 0 : config_.strict_frames;
     accept(best, frame_index, TrackState::kRelocalised, &r);
+    return r;
+  }
+  // No feature pose: the outline and the shading may agree on one.
+  PoseEstimate by_outline;
+  if (track_by_outline(T_guess, &by_outline, &r)) {
+    fill_measures(by_outline, &r);
+    accept(by_outline, frame_index, TrackState::kRelocalised, &r);
+    velocity_ = lost_velocity_;  // measured frame to frame by dead reckoning
   } else {
     r.state = TrackState::kLost;
   }

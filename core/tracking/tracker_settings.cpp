@@ -5,6 +5,7 @@
 #include <type_traits>
 
 #include "core/base/capacity.h"
+#include "core/contour/region_modality.h"
 #include "core/formats/text_scan.h"
 
 namespace st {
@@ -86,6 +87,11 @@ const std::array kKeys = {
     ST_SETTING(anchor_min_inlier_ratio, 0, 1, "confirmation: the anchor frame's least inlier ratio"),
     ST_SETTING(confirmed_keyframe_min_anchored, 0, 1,
                "a confirmed frame adds a keyframe only with this share of anchored inliers"),
+    ST_SETTING(use_contour, 0, 1, "no feature pose: the outline and the shading, if they agree"),
+    ST_SETTING(contour_min_lines, 6, RegionModality::kMaxLines, "outline lines needed to measure a pose"),
+    ST_SETTING(contour_max_sigma_px, 0, 1000, "the outline alone must fix the organ to this, 1 sigma, level-0 px"),
+    ST_SETTING(contour_agreement_px, 0, 1000, "outline vs shading: organ agreement, level-0 pixels"),
+    ST_SETTING(photometric_weight, 0, 1000, "the shading's information in the joint pose, times this"),
     ST_SETTING(max_jump_deg, 0.01, 180, "a pose turned farther from the prediction is lost, degrees"),
     ST_SETTING(max_jump_mm, 0.01, 1000, "a pose moved farther from the prediction is lost, mm"),
     // Keyframes.

@@ -7,6 +7,8 @@
 #include <bit>
 #include <cmath>
 
+#include <Eigen/Eigenvalues>
+
 #include "core/tracking/tracker_impl.h"
 
 namespace st {
@@ -102,7 +104,7 @@ bool TrackerImpl::solve_pose(SE3* T_camera_model, PoseEstimate* e) {
 // settled 22 px off (a wrong basin; its contrast gain of 0.04 now has
 // align() refuse it as well). From both starts the guess stayed within
 // 1.5-3.7 px for the next 35 frames.
-bool TrackerImpl::dead_reckon(SE3* T_camera_model, const SE3& T_alternative) {
+bool TrackerImpl::dead_reckon(SE3* T_camera_model, const SE3& T_alternative, DirectAlignSummary* fit_out) {
   if (!config_.use_image_motion || !aligner_.has_reference()) return false;
   const GrayView image = orb_.pyramid().level(align_level_);  // this frame's: extract() ran
   render_at(aligner_.reference_pose());
@@ -117,6 +119,7 @@ bool TrackerImpl::dead_reckon(SE3* T_camera_model, const SE3& T_alternative) {
         (!ok || fit_alt.level < fit.level ||
          (fit_alt.level == fit.level && fit_alt.residual_median < fit.residual_median))) {
       T = T_alt;
+      fit = fit_alt;
       ok = true;
     }
   }
@@ -124,6 +127,7 @@ bool TrackerImpl::dead_reckon(SE3* T_camera_model, const SE3& T_alternative) {
     aligner_.forget_reference();
     return false;
   }
+  if (fit_out) *fit_out = fit;
   *T_camera_model = T;
   aligner_.keep_reference(image, valid_view_, T);
   return true;
@@ -171,6 +175,38 @@ double TrackerImpl::view_difference_px(const SE3& a, const SE3& b) const {
       ++n;
     }
   return n > 0 ? sum / n : kUnknownMotion;
+}
+
+// How far (level-0 px, RMS over the organ) the organ in view moves for a
+// pose error of covariance cov (the left-perturbation tangent) at pose T:
+// organ points on the 16 x 9 grid of the current render (raster_), their
+// projection's Jacobian J, sqrt(mean trace(J cov J^T)). kUnknownMotion if
+// no grid point is on the organ.
+double TrackerImpl::view_sigma_px(const Mat6& cov, const SE3& T) const {
+  if (!raster_valid_) return kUnknownMotion;
+  const ImageView<const float> depth = raster_.depth();
+  const Pinhole& Kr = raster_.camera();
+  const SE3 model_from_raster = raster_pose_.inverse();
+  double sum = 0;
+  int n = 0;
+  for (int gy = 0; gy < 9; ++gy)
+    for (int gx = 0; gx < 16; ++gx) {
+      const int x = (2 * gx + 1) * depth.width / 32, y = (2 * gy + 1) * depth.height / 18;
+      const float d = depth(x, y);
+      if (!(d > 0.f)) continue;
+      const Vec3 pc = T * (model_from_raster * Kr.unproject(Vec2(x, y), d));
+      if (!(pc.z() > 1.0)) continue;
+      const double iz = 1.0 / pc.z();
+      Eigen::Matrix<double, 2, 3> P;
+      P << K_.fx * iz, 0, -K_.fx * pc.x() * iz * iz, 0, K_.fy * iz, -K_.fy * pc.y() * iz * iz;
+      Eigen::Matrix<double, 3, 6> D;
+      D.leftCols<3>() = -hat(pc);
+      D.rightCols<3>() = Mat3::Identity();
+      const Eigen::Matrix<double, 2, 6> J = P * D;
+      sum += (J * cov * J.transpose()).trace();
+      ++n;
+    }
+  return n > 0 ? std::sqrt(sum / n) : kUnknownMotion;
 }
 
 // Image motion (level-0 pixels) between two poses for the scene at the last
@@ -353,9 +389,107 @@ TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
     // Measured from the last tracked frame where the organ allows.
     if (dead_reckon(&T_dead_reckoned_, velocity_ * T_last_)) lost_velocity_ = T_dead_reckoned_ * T_last_.inverse();
     reloc_keyframes_.forget_ranking();  // ranked at the first relocalisation attempt
-    velocity_ = SE3();
+    // Without a feature pose, the outline and the shading may still agree
+    // on one (smooth tissue).
+    PoseEstimate by_outline;
+    if (track_by_outline(T_dead_reckoned_, &by_outline, &r)) {
+      accept(by_outline, frame_index, TrackState::kTracking, &r);
+    } else {
+      velocity_ = SE3();
+    }
   }
   return r;
+}
+
+// The pose from the organ's outline and its shading, for a frame whose
+// features gave none (TrackerConfig::use_contour), from T_guess (dead
+// reckoning's, or the prediction). Two independent measurements from the
+// same start: the outline alone (RegionModality), and the shading alone,
+// this frame aligned directly against the last reported frame through the
+// mesh's depth (shading_ref_). judge_agreement() decides
+// (core/tracking/modality_agreement.h); the pose reported minimises both,
+// the outline's lines whitened by their own measured spread (their mean
+// chi2, when above 1) and the shading by its information times
+// photometric_weight. True with *e filled when they agree.
+bool TrackerImpl::track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackResult* r) {
+  if (!config_.use_contour || !region_.has_colour_model() || !shading_ref_.has_reference()) return false;
+  double t = now_ms();
+  r->outline_tried = true;
+  OutlineShadingEvidence evidence;
+  SE3 T_outline = T_guess;
+  ContourFit fit;
+  Mat6 H_outline = Mat6::Zero();
+  if (region_.estimate(luma_, chroma_, valid_view_, camera_, &T_outline, &fit, config_.contour_min_lines)) {
+    evidence.outline_lines = fit.lines;
+    Vec6 g_unused = Vec6::Zero();
+    region_.linearize(T_outline, &H_outline, &g_unused);
+    H_outline /= std::max(1.0, fit.chi2_per_line);
+  }
+  r->contour_lines = evidence.outline_lines;
+  r->contour_rms_px = fit.rms_px;
+  render_at(shading_ref_.reference_pose());
+  if (evidence.outline_lines > 0) {
+    const Eigen::SelfAdjointEigenSolver<Mat6> eig(H_outline, Eigen::EigenvaluesOnly);
+    if (eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(5)))
+      evidence.outline_sigma_px = view_sigma_px(H_outline.inverse(), T_outline);
+  }
+  r->contour_sigma_px = evidence.outline_sigma_px;
+  lap(Stage::kContour, &t, r);
+  SE3 T_shading = T_guess;
+  DirectAlignSummary shading;
+  evidence.shading_measured = shading_ref_.align(orb_.pyramid().level(align_level_), valid_view_, raster_, camera_,
+                                                 &T_shading, &shading, true);
+  if (evidence.outline_lines > 0 && evidence.shading_measured)
+    evidence.disagreement_px = view_difference_px(T_outline, T_shading);
+  r->modality_agreement_px = evidence.outline_lines > 0 && evidence.shading_measured ? evidence.disagreement_px : -1.0;
+  AgreementLimits limits;
+  limits.min_lines = config_.contour_min_lines;
+  limits.max_outline_sigma_px = config_.contour_max_sigma_px;
+  limits.max_disagreement_px = config_.contour_agreement_px;
+  r->agreement = judge_agreement(evidence, limits);
+  lap(Stage::kContour, &t, r);
+  if (r->agreement != Agreement::kAgree) return false;
+  const double outline_scale = 1.0 / std::max(1.0, fit.chi2_per_line);
+  const Mat6 I_shading = config_.photometric_weight * shading.information;
+  const SE3 shading_inverse = T_shading.inverse();
+  SE3 T = T_outline;
+  for (int it = 0; it < 6; ++it) {
+    Mat6 H = Mat6::Zero();
+    Vec6 g = Vec6::Zero();
+    region_.linearize(T, &H, &g);
+    H *= outline_scale;
+    g *= outline_scale;
+    H += I_shading;
+    g += I_shading * (T * shading_inverse).log();
+    const Vec6 delta = H.ldlt().solve(-g);
+    if (!delta.allFinite()) return false;
+    T = SE3::exp(delta) * T;
+    if (delta.head<3>().norm() < 1e-7 && delta.tail<3>().norm() < 1e-5) break;
+  }
+  lap(Stage::kContour, &t, r);
+  // The joint pose lies between the two; if it left either by more than
+  // they may differ, the linearisation did not hold.
+  if (!T.all_finite() || view_difference_px(T, T_outline) > config_.contour_agreement_px ||
+      view_difference_px(T, T_shading) > config_.contour_agreement_px) {
+    r->agreement = Agreement::kDisagree;
+    return false;
+  }
+  *e = PoseEstimate{};
+  e->solved = true;
+  e->T_camera_model = T;
+  e->mean_depth_mm = last_depth_mm_;
+  r->by_outline = true;
+  return true;
+}
+
+// The outline's colour models learn from a reported frame at its pose,
+// every kLearnEvery reported frames (one render each; the organ's and its
+// surroundings' colours change slowly), and always when forced (frame 0).
+void TrackerImpl::learn_colours(const SE3& T, float rate, bool force) {
+  if (!config_.use_contour) return;
+  if (!force && ++frames_since_learn_ < kLearnEvery) return;
+  frames_since_learn_ = 0;
+  region_.learn(luma_, chroma_, valid_view_, camera_, T, rate);
 }
 
 void TrackerImpl::fill_measures(const PoseEstimate& e, TrackResult* r) const {
@@ -388,7 +522,11 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
     // confirmed, and with margin over the ratio gate.
     if (!r->confirmed_by_alignment && e.inlier_ratio() >= config_.anchor_min_inlier_ratio)
       anchor_.keep_reference(small, valid_view_, e.T_camera_model);
+    if (config_.use_contour) shading_ref_.keep_reference(small, valid_view_, e.T_camera_model);
   }
+  // The outline's colours: learnt faster from feature poses, slowly from
+  // the outline's own (so that an error does not teach itself).
+  learn_colours(e.T_camera_model, r->by_outline ? 0.05f : 0.2f);
   last_inliers_ = e.inliers;
   last_depth_mm_ = e.mean_depth_mm;
   lost_ = false;
@@ -405,6 +543,7 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   // A confirmed frame (relaxed ratio) may add one only if it stands mostly
   // on anchored points, and its own points are not anchored.
   bool may_add = state == TrackState::kRelocalised ? reloc_seed_ok_ : strict_frames_left_ == 0;
+  if (r->by_outline) may_add = false;  // no feature inliers: the keyframe's points would have no check
   if (r->confirmed_by_alignment && anchored_share() < config_.confirmed_keyframe_min_anchored) may_add = false;
   if (strict_frames_left_ > 0) --strict_frames_left_;
   if (may_add && motion_px <= static_cast<double>(config_.keyframe_max_motion_px) && need_keyframe(e))
