@@ -526,7 +526,9 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   }
   // The outline's colours: learnt faster from feature poses, slowly from
   // the outline's own (so that an error does not teach itself).
+  lap(Stage::kMap, &t, r);
   learn_colours(e.T_camera_model, r->by_outline ? 0.05f : 0.2f);
+  lap(Stage::kContour, &t, r);
   last_inliers_ = e.inliers;
   last_depth_mm_ = e.mean_depth_mm;
   lost_ = false;

@@ -91,6 +91,10 @@ Outcome track(const SmoothInvivo& seq, bool confirm) {
   // And the FAST thresholds unscaled: scaled to this dim organ's luma, more
   // frames pass the normal gates (lost 90, 10 confirmed).
   cfg.fast_reference_luma = 0.0;
+  // And features alone: the outline carries some of the frames both runs
+  // lose (confirmation off: lost 106 instead of 139), which is not what
+  // this test measures.
+  cfg.use_contour = false;
   Tracker t;
   REQUIRE(t.configure(cfg, seq.setup.prior, CameraModel(K, seq.setup.render.distortion), seq.truth(0)).ok());
   t.start();
