@@ -508,7 +508,13 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   r->state = state;
   r->pose_valid = true;
   r->T_camera_model = e.T_camera_model;
-  velocity_ = state == TrackState::kTracking ? e.T_camera_model * T_last_.inverse() : SE3();
+  // A frame the outline carried keeps the velocity it came with: the
+  // outline leaves a mix of rotation and translation nearly unseen, and a
+  // velocity taken from its poses fed their error in that mix back into
+  // the next prediction, which grew it by about half a frame (orbit, the
+  // outline alone: 0.4 deg to 5.8 deg in six frames, the organ's outline
+  // still fitting).
+  if (!r->by_outline) velocity_ = state == TrackState::kTracking ? e.T_camera_model * T_last_.inverse() : SE3();
   // How far the view moved since the last frame (level-0 px): blur. After
   // a lost spell, as dead reckoning measured it (kUnknownMotion if not).
   const double motion_px = state == TrackState::kTracking      ? image_shift_px(T_last_, e.T_camera_model)
