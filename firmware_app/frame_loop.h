@@ -61,6 +61,7 @@ struct RunStats {
   // Frames without a feature pose on which the outline and the shading were
   // tried, by verdict (core/tracking/modality_agreement.h), kAgree first.
   std::array<int, 5> outline_verdicts{};
+  int outline_vetoes = 0;  // feature poses the outline refused (TrackResult::outline_vetoed)
   double wall_s = 0, fps = 0;
   double mean_latency_ms = 0, p99_latency_ms = 0, max_latency_ms = 0;
   double peak_rss_mb = 0;

@@ -63,6 +63,9 @@ Status validate_tracker_settings(const TrackerConfig& c) {
     return err("contour_max_sigma_px must be in [0, 1000]");
   if (!(c.contour_agreement_px >= 0 && c.contour_agreement_px <= 1000))
     return err("contour_agreement_px must be in [0, 1000]");
+  if (c.contour_check_inliers < 0 || c.contour_check_inliers > kMaxKeypoints)
+    return err("contour_check_inliers must be in [0, " + std::to_string(kMaxKeypoints) + "] (0: never)");
+  if (!(c.contour_veto_px > 0 && c.contour_veto_px <= 1000)) return err("contour_veto_px must be in (0, 1000]");
   if (!(c.photometric_weight >= 0 && c.photometric_weight <= 1000))
     return err("photometric_weight must be in [0, 1000]");
   if (!(c.confirm_agreement_px >= 0 && c.confirm_agreement_px <= 1000))

@@ -148,6 +148,14 @@ struct TrackerConfig {
   double contour_max_sigma_px = 1.5;
   double contour_agreement_px = 6.0;
   double photometric_weight = 0.1;
+  // The outline also checks weak feature poses: a pose that passed the
+  // gates with fewer than contour_check_inliers inliers (a blurred frame,
+  // the start of a swing) is lost if the outline, measured from it, puts
+  // the organ more than contour_veto_px away, and more than 5 times its own
+  // uncertainty (the features matched the wrong tissue).
+  // contour_check_inliers 0: never.
+  int contour_check_inliers = 90;
+  double contour_veto_px = 20.0;
   // Descriptor matching (core/features/orb_matcher.h): max_distance (of 256
   // bits), the ratio test, the orientation check.
   MatchConfig matching;
@@ -268,6 +276,9 @@ struct TrackResult {
   // says what was found; by_outline: the pose reported is theirs.
   bool outline_tried = false;
   bool by_outline = false;
+  // A feature pose that passed the gates, refused because the outline
+  // measured from it put the organ elsewhere (contour_veto_px).
+  bool outline_vetoed = false;
   int contour_lines = 0;
   double contour_rms_px = 0;
   double contour_sigma_px = -1;

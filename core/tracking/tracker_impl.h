@@ -63,6 +63,7 @@ class TrackerImpl {
   SE3 motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted);
   bool dead_reckon(SE3* T_camera_model, const SE3& T_alternative, DirectAlignSummary* fit = nullptr);
   bool track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackResult* r);
+  bool outline_refutes(const PoseEstimate& e, TrackResult* r);
   void learn_colours(const SE3& T, float rate, bool force = false);
   int match_local_map(float radius_px);
   bool solve_pose(SE3* T_camera_model, PoseEstimate* e);

@@ -377,6 +377,7 @@ TrackResult TrackerImpl::track(GrayView luma, int frame_index) {
       r.confirmed_by_alignment = ok;
     }
   }
+  if (ok && outline_refutes(e, &r)) ok = false;
   fill_measures(e, &r);
   if (ok) {
     accept(e, frame_index, TrackState::kTracking, &r);
@@ -482,6 +483,40 @@ bool TrackerImpl::track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackRes
   return true;
 }
 
+// A weak feature pose, checked by the organ's outline measured from it
+// (TrackerConfig::contour_check_inliers): true when the outline puts the
+// organ more than contour_veto_px from the features' pose, and more than
+// kVetoSigmas times the outline's own uncertainty (scaled by its chi2).
+// Measured on the smooth set: a blurred frame at the start of a swing
+// passed the gates with 52 inliers at 10.6 deg and 21 mm from the truth;
+// its outline (208 lines, sigma 3.4 px) put the organ 29.8 px away.
+namespace {
+// A disagreement this many of the outline's sigmas is not its noise.
+constexpr double kVetoSigmas = 5.0;
+}  // namespace
+
+bool TrackerImpl::outline_refutes(const PoseEstimate& e, TrackResult* r) {
+  if (!config_.use_contour || e.inliers >= config_.contour_check_inliers || !region_.has_colour_model()) return false;
+  double t = now_ms();
+  SE3 T = e.T_camera_model;
+  ContourFit fit;
+  bool refuted = false;
+  if (region_.estimate(luma_, chroma_, valid_view_, camera_, &T, &fit, config_.contour_min_lines)) {
+    Mat6 H = Mat6::Zero();
+    Vec6 g = Vec6::Zero();
+    region_.linearize(T, &H, &g);
+    H /= std::max(1.0, fit.chi2_per_line);
+    const Eigen::SelfAdjointEigenSolver<Mat6> eig(H, Eigen::EigenvaluesOnly);
+    if (eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(5))) {
+      const double difference_px = view_difference_px(T, e.T_camera_model);
+      refuted = difference_px > config_.contour_veto_px && difference_px > kVetoSigmas * view_sigma_px(H.inverse(), T);
+    }
+  }
+  lap(Stage::kContour, &t, r);
+  r->outline_vetoed = refuted;
+  return refuted;
+}
+
 // The outline's colour models learn from a reported frame at its pose,
 // every kLearnEvery reported frames (one render each; the organ's and its
 // surroundings' colours change slowly), and always when forced (frame 0).
@@ -511,7 +546,7 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   // A frame the outline carried keeps the velocity it came with: the
   // outline leaves a mix of rotation and translation nearly unseen, and a
   // velocity taken from its poses fed their error in that mix back into
-  // the next prediction, which grew it by about half a frame (orbit, the
+  // the next prediction, which grew it by about half each frame (orbit, the
   // outline alone: 0.4 deg to 5.8 deg in six frames, the organ's outline
   // still fitting).
   if (!r->by_outline) velocity_ = state == TrackState::kTracking ? e.T_camera_model * T_last_.inverse() : SE3();
