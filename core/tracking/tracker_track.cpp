@@ -149,6 +149,25 @@ double TrackerImpl::anchor_agreement_px(const SE3& T_guess, const SE3& T_feature
   return view_difference_px(T, T_features);
 }
 
+namespace {
+
+// Calls visit(p) for the organ's model points p on a 16 x 9 grid of a
+// render made at raster_pose: where the pose comparisons below measure.
+template <class Visit>
+void for_each_organ_grid_point(const MeshRasterizer& raster, const SE3& raster_pose, Visit&& visit) {
+  const ImageView<const float> depth = raster.depth();
+  const Pinhole& Kr = raster.camera();
+  const SE3 model_from_raster = raster_pose.inverse();
+  for (int gy = 0; gy < 9; ++gy)
+    for (int gx = 0; gx < 16; ++gx) {
+      const int x = (2 * gx + 1) * depth.width / 32, y = (2 * gy + 1) * depth.height / 18;
+      const float d = depth(x, y);
+      if (d > 0.f) visit(Vec3(model_from_raster * Kr.unproject(Vec2(x, y), d)));
+    }
+}
+
+}  // namespace
+
 // How far apart two poses put the organ in view (level-0 pixels): organ
 // points on a 16 x 9 grid of the current render (raster_, at whatever pose
 // it was made), projected at a and at b; the mean distance
@@ -158,22 +177,14 @@ double TrackerImpl::anchor_agreement_px(const SE3& T_guess, const SE3& T_feature
 // handful of features sit.
 double TrackerImpl::view_difference_px(const SE3& a, const SE3& b) const {
   if (!raster_valid_) return kUnknownMotion;
-  const ImageView<const float> depth = raster_.depth();
-  const Pinhole& Kr = raster_.camera();
-  const SE3 model_from_raster = raster_pose_.inverse();
   double sum = 0;
   int n = 0;
-  for (int gy = 0; gy < 9; ++gy)
-    for (int gx = 0; gx < 16; ++gx) {
-      const int x = (2 * gx + 1) * depth.width / 32, y = (2 * gy + 1) * depth.height / 18;
-      const float d = depth(x, y);
-      if (!(d > 0.f)) continue;
-      const Vec3 p = model_from_raster * Kr.unproject(Vec2(x, y), d);
-      const Vec3 pa = a * p, pb = b * p;
-      if (!(pa.z() > 1.0) || !(pb.z() > 1.0)) continue;
-      sum += (K_.project(pa) - K_.project(pb)).norm();
-      ++n;
-    }
+  for_each_organ_grid_point(raster_, raster_pose_, [&](const Vec3& p) {
+    const Vec3 pa = a * p, pb = b * p;
+    if (!(pa.z() > 1.0) || !(pb.z() > 1.0)) return;
+    sum += (K_.project(pa) - K_.project(pb)).norm();
+    ++n;
+  });
   return n > 0 ? sum / n : kUnknownMotion;
 }
 
@@ -184,28 +195,21 @@ double TrackerImpl::view_difference_px(const SE3& a, const SE3& b) const {
 // no grid point is on the organ.
 double TrackerImpl::view_sigma_px(const Mat6& cov, const SE3& T) const {
   if (!raster_valid_) return kUnknownMotion;
-  const ImageView<const float> depth = raster_.depth();
-  const Pinhole& Kr = raster_.camera();
-  const SE3 model_from_raster = raster_pose_.inverse();
   double sum = 0;
   int n = 0;
-  for (int gy = 0; gy < 9; ++gy)
-    for (int gx = 0; gx < 16; ++gx) {
-      const int x = (2 * gx + 1) * depth.width / 32, y = (2 * gy + 1) * depth.height / 18;
-      const float d = depth(x, y);
-      if (!(d > 0.f)) continue;
-      const Vec3 pc = T * (model_from_raster * Kr.unproject(Vec2(x, y), d));
-      if (!(pc.z() > 1.0)) continue;
-      const double iz = 1.0 / pc.z();
-      Eigen::Matrix<double, 2, 3> P;
-      P << K_.fx * iz, 0, -K_.fx * pc.x() * iz * iz, 0, K_.fy * iz, -K_.fy * pc.y() * iz * iz;
-      Eigen::Matrix<double, 3, 6> D;
-      D.leftCols<3>() = -hat(pc);
-      D.rightCols<3>() = Mat3::Identity();
-      const Eigen::Matrix<double, 2, 6> J = P * D;
-      sum += (J * cov * J.transpose()).trace();
-      ++n;
-    }
+  for_each_organ_grid_point(raster_, raster_pose_, [&](const Vec3& p) {
+    const Vec3 pc = T * p;
+    if (!(pc.z() > 1.0)) return;
+    const double iz = 1.0 / pc.z();
+    Eigen::Matrix<double, 2, 3> P;
+    P << K_.fx * iz, 0, -K_.fx * pc.x() * iz * iz, 0, K_.fy * iz, -K_.fy * pc.y() * iz * iz;
+    Eigen::Matrix<double, 3, 6> D;
+    D.leftCols<3>() = -hat(pc);
+    D.rightCols<3>() = Mat3::Identity();
+    const Eigen::Matrix<double, 2, 6> J = P * D;
+    sum += (J * cov * J.transpose()).trace();
+    ++n;
+  });
   return n > 0 ? std::sqrt(sum / n) : kUnknownMotion;
 }
 
