@@ -547,13 +547,14 @@ void TrackerImpl::accept(const PoseEstimate& e, int frame_index, TrackState stat
   r->state = state;
   r->pose_valid = true;
   r->T_camera_model = e.T_camera_model;
-  // A frame the outline carried keeps the velocity it came with: the
-  // outline leaves a mix of rotation and translation nearly unseen, and a
-  // velocity taken from its poses fed their error in that mix back into
-  // the next prediction, which grew it by about half each frame (orbit, the
-  // outline alone: 0.4 deg to 5.8 deg in six frames, the organ's outline
-  // still fitting).
-  if (!r->by_outline) velocity_ = state == TrackState::kTracking ? e.T_camera_model * T_last_.inverse() : SE3();
+  // No velocity from a frame the outline carried: the outline leaves a mix
+  // of rotation and translation nearly unseen, and a velocity taken from
+  // its poses fed their error in that mix back into the next prediction,
+  // which grew it by about half each frame (orbit, the outline alone: 0.4
+  // deg to 5.8 deg in six frames, the organ's outline still fitting). Nor
+  // the velocity it came with: after a swing that one is the swing's.
+  // Dead reckoning measures the next frame's motion from this pose.
+  velocity_ = state == TrackState::kTracking && !r->by_outline ? e.T_camera_model * T_last_.inverse() : SE3();
   // How far the view moved since the last frame (level-0 px): blur. After
   // a lost spell, as dead reckoning measured it (kUnknownMotion if not).
   const double motion_px = state == TrackState::kTracking      ? image_shift_px(T_last_, e.T_camera_model)

@@ -280,8 +280,8 @@ TEST_CASE("app_e2e: an instrument over smooth tissue is masked by its colour (ph
 // corners and this sequence no longer needs the refresh (0 % lost either
 // way; TRE 1.18 / 3.33 px with it, 0.88 / 3.14 px without), and the
 // organ's outline carries the frames the ratio gate refuses until the
-// features match again (both off, outline on: 0 % lost, 11 frames by the
-// outline, TRE 1.24 / 4.07 px): the control turns all three off, to keep
+// features match again (both off, outline on: 0 % lost, 38 frames by the
+// outline, TRE 1.00 / 3.37 px): the control turns all three off, to keep
 // showing what the refresh does on its own (29.3 % lost).
 TEST_CASE("app_e2e: map points follow the tissue's appearance (photo manipulation seed 4, 1280x720)" *
           doctest::timeout(test::budget_s(600)) * doctest::test_suite(test::kLongSuite)) {
@@ -341,10 +341,12 @@ TEST_CASE("app_e2e: the outline refuses a blurred frame's wrong feature pose (sm
 // tissue no keyframe has seen, through smeared frames. Before dead
 // reckoning by direct alignment (core/motion/direct_alignment.h), with its
 // confirmed relocalisation and keyframe there, this never recovered: 69 %
-// lost at 960x540 (and at 640x360 and 1280x720). Now (960x540,
-// deterministic, see kDeterministic): 4.3 % lost, TRE 1.29 / 3.5 px. At
-// 640x360 it is still lost: even from the true pose the map yields 20-35
-// matches there.
+// lost at 960x540 (and at 640x360 and 1280x720). Then (960x540,
+// deterministic, see kDeterministic): 4.3 % lost, TRE 1.29 / 3.5 px; now
+// 0.3 % lost, TRE 1.08 / 5.8 px, the organ's outline carrying two frames
+// of the swing (features only, --set use_contour=0: 1.0 %, 0.36 / 2.6 px;
+// docs/design-notes.md). At 640x360 it is still lost: even from the true
+// pose the map yields 20-35 matches there.
 TEST_CASE("app_e2e: a fast swing into unmapped tissue is recovered (fast seed 2, 960x540), no wrong pose" *
           doctest::timeout(test::budget_s(600)) * doctest::test_suite(test::kLongSuite)) {
   const EvalReport report =
