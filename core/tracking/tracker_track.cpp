@@ -6,6 +6,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Eigenvalues>
 
@@ -423,21 +424,12 @@ bool TrackerImpl::track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackRes
   OutlineShadingEvidence evidence;
   SE3 T_outline = T_guess;
   ContourFit fit;
-  Mat6 H_outline = Mat6::Zero();
-  if (region_.estimate(luma_, chroma_, valid_view_, camera_, &T_outline, &fit, config_.contour_min_lines)) {
+  if (region_.estimate(luma_, chroma_, valid_view_, camera_, &T_outline, &fit, config_.contour_min_lines))
     evidence.outline_lines = fit.lines;
-    Vec6 g_unused = Vec6::Zero();
-    region_.linearize(T_outline, &H_outline, &g_unused);
-    H_outline /= std::max(1.0, fit.chi2_per_line);
-  }
   r->contour_lines = evidence.outline_lines;
   r->contour_rms_px = fit.rms_px;
   render_at(shading_ref_.reference_pose());
-  if (evidence.outline_lines > 0) {
-    const Eigen::SelfAdjointEigenSolver<Mat6> eig(H_outline, Eigen::EigenvaluesOnly);
-    if (eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(5)))
-      evidence.outline_sigma_px = view_sigma_px(H_outline.inverse(), T_outline);
-  }
+  if (evidence.outline_lines > 0) evidence.outline_sigma_px = outline_sigma_px(T_outline, fit);
   r->contour_sigma_px = evidence.outline_sigma_px;
   lap(Stage::kContour, &t, r);
   SE3 T_shading = T_guess;
@@ -487,6 +479,21 @@ bool TrackerImpl::track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackRes
   return true;
 }
 
+// The outline's own uncertainty at its pose T (fit: what estimate() saw):
+// how far the organ in view moves (view_sigma_px, on the current render)
+// for the inverse of the lines' normal equations, scaled by their mean
+// chi2 when above 1. Infinite when the lines leave a direction unfixed.
+double TrackerImpl::outline_sigma_px(const SE3& T, const ContourFit& fit) const {
+  Mat6 H = Mat6::Zero();
+  Vec6 g = Vec6::Zero();
+  region_.linearize(T, &H, &g);
+  H /= std::max(1.0, fit.chi2_per_line);
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(H, Eigen::EigenvaluesOnly);
+  if (!(eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(5))))
+    return std::numeric_limits<double>::infinity();
+  return view_sigma_px(H.inverse(), T);
+}
+
 // A weak feature pose, checked by the organ's outline measured from it
 // (TrackerConfig::contour_check_inliers): true when the outline puts the
 // organ more than contour_veto_px from the features' pose, and more than
@@ -506,15 +513,8 @@ bool TrackerImpl::outline_refutes(const PoseEstimate& e, TrackResult* r) {
   ContourFit fit;
   bool refuted = false;
   if (region_.estimate(luma_, chroma_, valid_view_, camera_, &T, &fit, config_.contour_min_lines)) {
-    Mat6 H = Mat6::Zero();
-    Vec6 g = Vec6::Zero();
-    region_.linearize(T, &H, &g);
-    H /= std::max(1.0, fit.chi2_per_line);
-    const Eigen::SelfAdjointEigenSolver<Mat6> eig(H, Eigen::EigenvaluesOnly);
-    if (eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(5))) {
-      const double difference_px = view_difference_px(T, e.T_camera_model);
-      refuted = difference_px > config_.contour_veto_px && difference_px > kVetoSigmas * view_sigma_px(H.inverse(), T);
-    }
+    const double difference_px = view_difference_px(T, e.T_camera_model);
+    refuted = difference_px > config_.contour_veto_px && difference_px > kVetoSigmas * outline_sigma_px(T, fit);
   }
   lap(Stage::kContour, &t, r);
   r->outline_vetoed = refuted;

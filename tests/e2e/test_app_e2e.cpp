@@ -332,6 +332,7 @@ TEST_CASE("app_e2e: the outline refuses a blurred frame's wrong feature pose (sm
   CHECK(report.result.init_ok);
   CHECK(report.result.wrong_pct == 0.0);
   CHECK(summary_number(dir / "out", "outline_vetoes") >= 1);
+  CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);  // the check allocates nothing
   const EvalResult control =
       track_control(dir, " --set contour_check_inliers=0", "weak feature poses not checked by the outline");
   CHECK(control.wrong_pct > 0.0);

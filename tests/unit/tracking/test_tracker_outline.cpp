@@ -13,6 +13,8 @@
 
 #include "core/raster/rasterizer.h"
 #include "core/tracking/tracker.h"
+#include "platform/alloc_counter.h"
+#include "tests/support/alloc_guard.h"
 #include "tests/support/raster_scene.h"
 #include "tests/support/track_scene.h"
 
@@ -94,6 +96,7 @@ struct OutlineRun {
   int by_outline = 0, lost = 0, frames = 0;
   int verdicts[5] = {};
   double worst_px = 0;  // largest view error of a reported frame
+  std::uint64_t allocations = 0;  // heap allocations inside step() after the first frame
 };
 
 OutlineRun run(const Look& look, int frames) {
@@ -112,8 +115,10 @@ OutlineRun run(const Look& look, int frames) {
   for (int i = 0; i < frames; ++i) {
     const ColourFrame f = render(mesh, K, poses[static_cast<std::size_t>(i)], look.slide_mm_per_frame * i, look,
                                  static_cast<std::uint32_t>(i + 1));
+    const test::AllocationCounter counter;
     const TrackResult r = t.step(f.luma(), i, f.chroma());
     if (i == 0) continue;
+    out.allocations += counter.count();
     ++out.frames;
     out.lost += r.state == TrackState::kLost ? 1 : 0;
     out.by_outline += r.by_outline && r.pose_valid ? 1 : 0;
@@ -131,9 +136,11 @@ OutlineRun run(const Look& look, int frames) {
 }  // namespace
 
 TEST_CASE("tracker outline: without features, the outline and the shading that agree carry the pose") {
+  REQUIRE(platform::allocation_counting_enabled());
   const OutlineRun r = run(Look{}, 16);
   CHECK(r.by_outline >= r.frames * 3 / 4);
   CHECK(r.worst_px < 3.0);
+  CHECK(r.allocations == 0);  // the outline, the shading, the joint pose and the colour learning
 }
 
 TEST_CASE("tracker outline: the outline fits but the shading does not: lost") {
