@@ -33,6 +33,17 @@ V clamp_diagonal(const V& d, double lo, double hi) {
   return d.cwiseMax(lo).cwiseMin(hi);
 }
 
+// The lower triangle of M += A B^T (A, B n x 2). The blocks of the normal
+// equations and of the reduced system are symmetric, and every reader
+// takes their lower triangle (the Cholesky, the point blocks' inverse), so
+// the upper one is never formed: 21 of the 36 entries of a pose block.
+template <int N>
+inline void add_lower_abt(const Eigen::Matrix<double, N, 2>& A, const Eigen::Matrix<double, N, 2>& B,
+                          Eigen::Matrix<double, N, N>* M) {
+  for (int c = 0; c < N; ++c)
+    for (int r = c; r < N; ++r) (*M)(r, c) += A(r, 0) * B(c, 0) + A(r, 1) * B(c, 1);
+}
+
 }  // namespace
 
 Status SchurSolver::configure(int max_keyframes, int max_points, int max_observations) {
@@ -231,11 +242,11 @@ bool SchurSolver::evaluate_observations(bool candidate, bool linearize, double* 
     if (!linearize) continue;
     L.r = w * r;
     if (w != 1.0) L.H *= w;
-    V_[p].noalias() += L.H * L.H.transpose();
+    add_lower_abt<3>(L.H, L.H, &V_[p]);
     g_point_[p].noalias() += L.H * L.r;
     if (free_pose) {
       if (w != 1.0) L.G *= w;
-      U_[k].noalias() += L.G * L.G.transpose();
+      add_lower_abt<6>(L.G, L.G, &U_[k]);
       g_pose_[k].noalias() += L.G * L.r;
     }
     if (!free_focal_) continue;
@@ -259,14 +270,24 @@ bool SchurSolver::evaluate_shapes(bool candidate, bool linearize, double* cost) 
     Vec3 r = Vec3::Zero();
     Mat33r J = Mat33r::Zero();
     if (shape_[p] == ShapeKind::kPlane) {
-      double r2[2], J2[6];
-      plane_cost(plane_[p], res_.sqrt_w_shape, points[p].data(), r2, linearize ? J2 : nullptr);
-      r[0] = r2[0];
-      if (linearize) J.row(0) << J2[0], J2[1], J2[2];
-    } else if (!res_.surface ||
-               !shape_cost(*res_.surface, res_.sqrt_w_shape, points[p].data(), r.data(), linearize ? J.data() : nullptr)) {
-      return false;
+      // One row, r = sqrt_w n . (f - foot), J = sqrt_w n^T: a rank-one block.
+      double r2[2];
+      plane_cost(plane_[p], res_.sqrt_w_shape, points[p].data(), r2, nullptr);
+      double w = 1.0;
+      sum += 0.5 * huber(r2[0] * r2[0], res_.shape_huber, &w);
+      if (!linearize) continue;
+      const Vec3 j = (w * res_.sqrt_w_shape) * plane_[p].normal;
+      shape_r_[p] = Vec3(w * r2[0], 0.0, 0.0);
+      shape_J_[p].setZero();
+      shape_J_[p].row(0) = j.transpose();
+      for (int c = 0; c < 3; ++c)
+        for (int q = c; q < 3; ++q) V_[p](q, c) += j[q] * j[c];
+      g_point_[p].noalias() += j * shape_r_[p][0];
+      continue;
     }
+    if (!res_.surface ||
+        !shape_cost(*res_.surface, res_.sqrt_w_shape, points[p].data(), r.data(), linearize ? J.data() : nullptr))
+      return false;
     double w = 1.0;
     sum += 0.5 * huber(r.squaredNorm(), res_.shape_huber, &w);
     if (!linearize) continue;
@@ -374,7 +395,7 @@ bool SchurSolver::compute_step(double radius, bool new_diagonal, const SchurSolv
 // Cholesky reads no other).
 void SchurSolver::eliminate_point(int point) {
   const auto p = static_cast<std::size_t>(point);
-  Mat3 Vd = V_[p];
+  Mat3 Vd = V_[p].selfadjointView<Eigen::Lower>();
   Vd.diagonal() += mu_ * diag_point_[p];
   const Mat3 V_inv = Vd.inverse();
   V_inv_[p] = V_inv;
@@ -395,7 +416,10 @@ void SchurSolver::eliminate_point(int point) {
       if (cj < 0) continue;
       const Linearization& Lj = lin_obs_[static_cast<std::size_t>(j)];
       const Eigen::Matrix2d A = Qi.transpose() * Lj.H;  // block (i, j) = G_i A G_j^T
-      if (ci > cj || i == j) {
+      if (i == j) {  // G_i A G_i^T, symmetric: its lower triangle
+        const Eigen::Matrix<double, 6, 2> B = -(Li.G * A.transpose());
+        add_lower_abt<6>(Li.G, B, &S_blocks_[static_cast<std::size_t>((ci / 6) * (nb + 1))]);
+      } else if (ci > cj) {
         const Eigen::Matrix<double, 6, 2> B = Lj.G * A.transpose();
         S_blocks_[static_cast<std::size_t>((ci / 6) * nb + cj / 6)].noalias() -= Li.G * B.transpose();
       } else if (ci < cj) {
@@ -414,42 +438,49 @@ void SchurSolver::eliminate_point(int point) {
   }
 }
 
-// step_p = V^-1 (-g_p - sum_i J_point_i^T J_pose_i step_pose - W_focal step_focal).
+// step_p = V^-1 (-g_p - sum_i J_point_i^T J_pose_i step_pose - W_focal step_focal),
+// and with it the part of the model's decrease (see model_cost_change())
+// of the point's residuals (its observations and its shape residual): a
+// point's observations are in cache once, so the linearization is streamed
+// through once per step, not twice.
 bool SchurSolver::back_substitute() {
   bool finite = std::isfinite(step_focal_);
+  double change = 0.0;
   for (int a = 0; a < active_count_; ++a) {
     const auto p = static_cast<std::size_t>(active_points_[static_cast<std::size_t>(a)]);
+    const int first = first_obs_[p], last = first_obs_[p + 1];
     Vec3 b = -g_point_[p] - W_focal_[p] * step_focal_;
-    for (int i = first_obs_[p]; i < first_obs_[p + 1]; ++i) {
+    for (int i = first; i < last; ++i) {
       const Observation& o = sorted_[static_cast<std::size_t>(i)];
       if (o.column < 0) continue;
       const Linearization& L = lin_obs_[static_cast<std::size_t>(i)];
       b.noalias() -= L.H * (L.G.transpose() * step_pose_[static_cast<std::size_t>(o.keyframe)]);
     }
-    step_point_[p] = V_inv_[p] * b;
-    finite = finite && step_point_[p].allFinite();
+    const Vec3 d = V_inv_[p] * b;
+    step_point_[p] = d;
+    finite = finite && d.allFinite();
+    for (int i = first; i < last; ++i) {
+      const Observation& o = sorted_[static_cast<std::size_t>(i)];
+      const Linearization& L = lin_obs_[static_cast<std::size_t>(i)];
+      Vec2 Jd = L.H.transpose() * d;
+      if (o.column >= 0) Jd.noalias() += L.G.transpose() * step_pose_[static_cast<std::size_t>(o.keyframe)];
+      if (free_focal_) Jd += L.J_focal * step_focal_;
+      change -= Jd.dot(L.r + 0.5 * Jd);
+    }
+    if (shape_[p] != ShapeKind::kNone) {
+      const Vec3 Js = shape_J_[p] * d;
+      change -= Js.dot(shape_r_[p] + 0.5 * Js);
+    }
   }
+  point_model_change_ = change;
   return finite;
 }
 
 // Decrease of the linear model: -(J step) . (r + J step / 2), summed over
-// the residuals (Ceres' model_cost_change).
+// the residuals (Ceres' model_cost_change); the points' residuals' part
+// comes from back_substitute(), the pose prior's is added here.
 double SchurSolver::model_cost_change() const {
-  double change = 0.0;
-  for (int i = 0; i < observation_count_; ++i) {
-    const Observation& o = sorted_[static_cast<std::size_t>(i)];
-    const Linearization& L = lin_obs_[static_cast<std::size_t>(i)];
-    Vec2 Jd = L.H.transpose() * step_point_[static_cast<std::size_t>(o.point)];
-    if (o.column >= 0) Jd.noalias() += L.G.transpose() * step_pose_[static_cast<std::size_t>(o.keyframe)];
-    if (free_focal_) Jd += L.J_focal * step_focal_;
-    change -= Jd.dot(L.r + 0.5 * Jd);
-  }
-  for (int a = 0; a < active_count_; ++a) {
-    const auto p = static_cast<std::size_t>(active_points_[static_cast<std::size_t>(a)]);
-    if (shape_[p] == ShapeKind::kNone) continue;
-    const Vec3 Jd = shape_J_[p] * step_point_[p];
-    change -= Jd.dot(shape_r_[p] + 0.5 * Jd);
-  }
+  double change = point_model_change_;
   if (prior_keyframe_ >= 0) {
     const auto k = static_cast<std::size_t>(prior_keyframe_);
     const Vec6 Jd = prior_w_.cwiseProduct(step_pose_[k]);

@@ -152,6 +152,7 @@ class SchurSolver {
   int keyframe_count_ = 0, point_count_ = 0, observation_count_ = 0, columns_ = 0, active_count_ = 0;
   bool free_focal_ = false, configured_ = false, set_up_ = false;
   double mu_ = 0;  // 1 / trust-region radius: the LM diagonal's factor
+  double point_model_change_ = 0;  // the points' residuals' part of model_cost_change(), from back_substitute()
   int prior_keyframe_ = -1;
   Vec6 prior_e0_ = Vec6::Zero(), prior_w_ = Vec6::Ones();
 
