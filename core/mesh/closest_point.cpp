@@ -233,7 +233,7 @@ Status ClosestPointIndex::configure(const Mesh& mesh) {
     const int t = tri_index_[static_cast<std::size_t>(s)];
     for (int j = 0; j < 3; ++j) {
       const Vec3 v = mesh.vertex(mesh.tri[static_cast<std::size_t>(3 * t + j)]);
-      for (int k = 0; k < 3; ++k) tri_xyz_[static_cast<std::size_t>(9 * s + 3 * j + k)] = v[k];
+      for (int k = 0; k < 3; ++k) tri_xyz_[static_cast<std::size_t>(9 * s + 3 * j + k)] = static_cast<float>(v[k]);
     }
     degenerate_[static_cast<std::size_t>(s)] = degenerate_triangle(corner(s, 0), corner(s, 1), corner(s, 2)) ? 1 : 0;
   }
@@ -264,7 +264,7 @@ void ClosestPointIndex::build_boxes() {
     if (n.count > 0) {
       for (int s = n.first; s < n.first + n.count; ++s)
         for (int j = 0; j < 9; ++j) {
-          const auto v = static_cast<float>(tri_xyz_[static_cast<std::size_t>(9 * s + j)]);  // exact: float input
+          const float v = tri_xyz_[static_cast<std::size_t>(9 * s + j)];
           n.lo[j % 3] = std::min(n.lo[j % 3], v);
           n.hi[j % 3] = std::max(n.hi[j % 3], v);
         }
@@ -368,13 +368,13 @@ int ClosestPointIndex::collapse(int b, int level) {
 }
 
 Vec3 ClosestPointIndex::corner(int slot, int k) const {
-  const double* v = &tri_xyz_[static_cast<std::size_t>(9 * slot + 3 * k)];
+  const float* v = &tri_xyz_[static_cast<std::size_t>(9 * slot + 3 * k)];
   return {v[0], v[1], v[2]};
 }
 
 void ClosestPointIndex::leaf_search(int first, int count, const Vec3& p, double* best2, int* best_slot) const {
   for (int s = first; s < first + count; ++s) {
-    const double* v = &tri_xyz_[static_cast<std::size_t>(9 * s)];
+    const float* v = &tri_xyz_[static_cast<std::size_t>(9 * s)];
     const Vec3 a(v[0], v[1], v[2]), b(v[3], v[4], v[5]), c(v[6], v[7], v[8]);
     // Degeneracy is known from configure(): the region kernel directly.
     const double d2 = degenerate_[static_cast<std::size_t>(s)]
@@ -444,7 +444,7 @@ bool ClosestPointIndex::closest(const Vec3& p_model, SurfacePoint* out) const {
 }
 
 std::size_t ClosestPointIndex::memory_bytes() const {
-  return nodes_.capacity() * sizeof(Node) + tri_xyz_.capacity() * sizeof(double) + degenerate_.capacity() +
+  return nodes_.capacity() * sizeof(Node) + tri_xyz_.capacity() * sizeof(float) + degenerate_.capacity() +
          tri_index_.capacity() * sizeof(std::int32_t);
 }
 
