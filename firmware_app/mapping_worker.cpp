@@ -62,7 +62,10 @@ void MappingWorker::submit_job(BaJob* job) {
 
 const BaJob* MappingWorker::solved_job() {
   if (config_.ba_lag_frames <= 0) return state_.load(std::memory_order_acquire) == kSolved ? &job_ : nullptr;
-  if (state_.load(std::memory_order_acquire) == kFree || ++frames_out_ < config_.ba_lag_frames) return nullptr;
+  // A focal test writes nothing into the map: it comes back at the next
+  // frame, so that it never holds a window's correction back.
+  const int lag = job_.kind == BaKind::kFocalTest ? 1 : config_.ba_lag_frames;
+  if (state_.load(std::memory_order_acquire) == kFree || ++frames_out_ < lag) return nullptr;
   while (state_.load(std::memory_order_acquire) != kSolved) std::this_thread::sleep_for(std::chrono::microseconds(50));
   return &job_;
 }
@@ -91,8 +94,8 @@ void MappingWorker::solve_one() {
   solve_ms_.add(static_cast<double>(platform::monotonic_ns() - t0) * 1e-6);
   const std::uint64_t allocs = platform::thread_allocation_count() - allocs0;
   if (allocs > stats_.max_allocations_per_solve) stats_.max_allocations_per_solve = allocs;
-  (global ? stats_.global_solves : stats_.window_solves) += 1;
-  if (!global) {
+  (global ? stats_.global_solves : job_.kind == BaKind::kFocalTest ? stats_.focal_tests : stats_.window_solves) += 1;
+  if (job_.kind == BaKind::kWindow) {
     window_observations_ += job_.summary.observations;
     window_fixed_observations_ += job_.summary.fixed_observations;
   }
@@ -106,7 +109,7 @@ void MappingWorker::solve_one() {
     stats_.registration_f = job_.summary.prior_f;
   }
   if (!ok) ++stats_.unusable;
-  if (ok) stats_.mean_surface_distance_mm = job_.summary.mean_surface_distance_mm;
+  if (ok && job_.kind != BaKind::kFocalTest) stats_.mean_surface_distance_mm = job_.summary.mean_surface_distance_mm;
 }
 
 MappingStats MappingWorker::stats() const {
@@ -125,6 +128,7 @@ void MappingWorker::append_summary(std::vector<std::pair<std::string, double>>* 
   const MappingStats s = stats();
   fields->emplace_back("ba_window_solves", s.window_solves);
   fields->emplace_back("ba_global_solves", s.global_solves);
+  fields->emplace_back("ba_focal_tests", s.focal_tests);
   fields->emplace_back("ba_unusable", s.unusable);
   fields->emplace_back("ba_solve_median_ms", s.solve_median_ms);
   fields->emplace_back("ba_solve_p99_ms", s.solve_p99_ms);

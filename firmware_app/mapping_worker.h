@@ -6,9 +6,11 @@
 // back through an atomic state the tracker reads at the start of a frame
 // (no lock, nothing held across a frame). With TrackerConfig::ba_lag_frames
 // N > 0 (deterministic replays) the job comes back exactly N frames after
-// it was handed over: solved_job() then waits for the solve, the one
-// place the tracking thread may block, and solves are bounded by iterations
-// only.
+// it was handed over (a focal-test job, which writes nothing into the map,
+// at the next frame: handed over at the end of a frame, it is back at the
+// start of the next, before any window could wait for it): solved_job()
+// then waits for the solve, the one place the tracking thread may block,
+// and solves are bounded by iterations only.
 //
 // Threads: configure() on the owner (allocates the job buffer, the BA
 // pools and the closest-point index); start()/stop() on the tracking
@@ -36,7 +38,7 @@
 namespace st::app {
 
 struct MappingStats {
-  int window_solves = 0, global_solves = 0, unusable = 0;
+  int window_solves = 0, global_solves = 0, focal_tests = 0, unusable = 0;
   double solve_median_ms = 0, solve_p99_ms = 0, solve_max_ms = 0;  // wall time of solve()
   std::uint64_t max_allocations_per_solve = 0;  // mapping thread, inside solve()
   double mean_surface_distance_mm = -1;         // of the last usable job's points after the solve

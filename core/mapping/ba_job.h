@@ -45,7 +45,10 @@ struct BaObservation {
   double info = 1;                  // 1 / sigma^2 of the keypoint's octave
 };
 
-enum class BaKind : std::uint8_t { kWindow, kGlobal };
+// kFocalTest: the calibration's focal test alone on the job as given
+// (BundleAdjuster::solve(); BaJob::test_focal on a window job runs it after
+// the window's solve instead); its solution is not the map's.
+enum class BaKind : std::uint8_t { kWindow, kGlobal, kFocalTest };
 
 // A Gaussian prior on one keyframe's pose: the registration of the first
 // frame (T_camera_model_init, "the coarse registration" of

@@ -367,7 +367,7 @@ int BundleAdjuster::select(BaJob* job, bool free_prior, FocalTest focal) {
   int used = 0;
   for (int i = 0; i < job->observation_count; ++i) {
     const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
-    const bool use = point_observed_[static_cast<std::size_t>(o.point)] && usable_observation(*job, o);
+    const bool use = point_observed_[static_cast<std::size_t>(o.point)] && observation_used_[static_cast<std::size_t>(i)];
     observation_used_[static_cast<std::size_t>(i)] = use ? 1 : 0;
     if (!use) continue;
     ++used;
@@ -466,8 +466,10 @@ void BundleAdjuster::select_points(BaJob* job) {
   for (int i = 0; i < job->point_count; ++i) point_observed_[static_cast<std::size_t>(i)] = 0;
   for (int i = 0; i < job->observation_count; ++i) {  // saturating counts
     const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
+    const bool usable = usable_observation(*job, o);
+    observation_used_[static_cast<std::size_t>(i)] = usable ? 1 : 0;  // select() adds the point's test
     std::uint8_t& n = point_observed_[static_cast<std::size_t>(o.point)];
-    if (n < 255 && usable_observation(*job, o)) ++n;
+    if (n < 255 && usable) ++n;
   }
   for (int i = 0; i < job->point_count; ++i) {
     std::uint8_t& n = point_observed_[static_cast<std::size_t>(i)];
@@ -579,6 +581,9 @@ bool BundleAdjuster::solve_once(BaJob* job, bool free_prior, int max_iterations,
   const SolverRun run = impl_ ? run_ceres(job, max_iterations, max_time_s) : run_schur(job, max_iterations, max_time_s);
   apply_pose_deltas(job);
   finish(job, run.initial_cost, run.final_cost, run.total_s, run.iterations, run.usable);
+  // The focal test's solves are undone (test_focal()): no statistic of theirs is kept.
+  if (focal == FocalTest::kNone)
+    job->summary.mean_surface_distance_mm = mean_surface_distance(*job, options_.surface_distance_samples);
   if (stats) *stats = run.stats;
   return job->summary.usable;
 }
@@ -643,6 +648,17 @@ bool BundleAdjuster::solve(BaJob* job, int max_iterations, double max_time_s) {
   job->summary = BaSummary{};
   job->summary.refusal = check(*job);
   if (job->summary.refusal != BaRefusal::kNone) return false;
+  if (job->kind == BaKind::kFocalTest) {  // the test alone: the job's points and poses come back as given
+    if (!(options_.w_shape > 0)) {
+      job->summary.refusal = BaRefusal::kNothingToSolve;  // no shape residual: no metric structure to test against
+      return false;
+    }
+    test_focal(job, max_iterations, max_time_s);
+    job->summary.keyframes = job->keyframe_count;
+    job->summary.points = job->point_count;
+    job->summary.usable = job->summary.focal_tested;
+    return job->summary.usable;
+  }
   if (!solve_tested_prior(job, max_iterations, max_time_s)) return false;
   if (job->test_focal && options_.w_shape > 0) test_focal(job, max_iterations, max_time_s);
   return job->summary.usable;
@@ -774,7 +790,6 @@ void BundleAdjuster::finish(BaJob* job, double initial_cost, double final_cost, 
     }
   }
   out.usable = finite && usable && final_cost <= initial_cost;
-  out.mean_surface_distance_mm = mean_surface_distance(*job, options_.surface_distance_samples);
 }
 
 double BundleAdjuster::mean_surface_distance(const BaJob& job, int max_samples) const {

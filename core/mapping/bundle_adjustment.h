@@ -55,8 +55,9 @@ class BundleAdjuster {
   // Solves the job in place with iteration and time limits (overriding the
   // options' when > 0) and fills job->summary. False (summary.usable false)
   // on a refused job (summary.refusal says why) or a failed solve: the
-  // job's values are then not to be applied. The Schur solver allocates
-  // nothing here.
+  // job's values are then not to be applied. A BaKind::kFocalTest job runs
+  // the focal test alone (usable: the test ran; the job's values come back
+  // as given). The Schur solver allocates nothing here.
   bool solve(BaJob* job, int max_iterations = 0, double max_time_s = 0);
   // Why solve() would refuse the job (BaRefusal::kNone: it would not).
   BaRefusal check(const BaJob& job) const;

@@ -20,7 +20,7 @@ Status BaHandoff::configure(const TrackerConfig& config, const SE3& T_camera_mod
 }
 
 void BaHandoff::reset() {
-  window_pending_ = global_pending_ = false;
+  window_pending_ = global_pending_ = focal_pending_ = false;
   init_keyframe_ = init_keyframe_frame_ = -1;
   keyframes_since_global_ = 0;
   calibration_jobs_ = 0;
@@ -34,6 +34,14 @@ bool BaHandoff::apply(TrackingMap* map) {
   if (!job) return false;
   const bool usable = job->summary.usable && job->version >= min_version_;
   if (usable && job->summary.focal_tested) judge_calibration(job->summary);
+  if (job->kind == BaKind::kFocalTest) {  // a test: nothing to write into the map
+    channel_->release_job(job);
+    return false;
+  }
+  // The first window jobs are each followed by a focal test from their solution.
+  if (usable && job->kind == BaKind::kWindow && config_.check_calibration && config_.ba.w_shape > 0 &&
+      calibration_jobs_ < config_.calibration_test_jobs)
+    focal_pending_ = true;
   if (usable) {
     for (int i = 0; i < job->keyframe_count; ++i) {
       const BaKeyframe& k = job->keyframes[static_cast<std::size_t>(i)];
@@ -102,12 +110,20 @@ bool BaHandoff::registration_free(const TrackingMap& map) const {
 }
 
 bool BaHandoff::submit(const TrackingMap& map, bool initialised) {
-  if (!channel_ || !config_.use_ba || !initialised || (!window_pending_ && !global_pending_)) return false;
+  if (!channel_ || !config_.use_ba || !initialised || (!window_pending_ && !global_pending_ && !focal_pending_))
+    return false;
   BaJob* job = channel_->acquire_job();
   if (!job) return false;
-  const bool global = global_pending_;
-  fill_job(map, job, global);
-  window_pending_ = global_pending_ = false;
+  // Corrections first (a global job covers the window too), the test when
+  // neither is pending.
+  const BaKind kind = global_pending_ ? BaKind::kGlobal : window_pending_ ? BaKind::kWindow : BaKind::kFocalTest;
+  fill_job(map, job, kind);
+  if (kind == BaKind::kFocalTest) {
+    focal_pending_ = false;
+    ++calibration_jobs_;
+  } else {
+    window_pending_ = global_pending_ = false;
+  }
   channel_->submit_job(job);  // an empty job comes back unusable (BundleAdjuster refuses it)
   return true;
 }
@@ -147,19 +163,16 @@ void BaHandoff::add_job_links(const TrackingMap& map, BaJob* job, int keyframe_i
   }
 }
 
-// Window: the newest ba_window_keyframes keyframes and their points free,
-// older keyframes that see those points fixed. Global: every keyframe and
-// point free (BundleAdjuster holds the oldest keyframe for the gauge).
-void BaHandoff::fill_job(const TrackingMap& map, BaJob* job, bool global) {
+// Window (and focal test): the newest ba_window_keyframes keyframes and
+// their points free, older keyframes that see those points fixed. Global:
+// every keyframe and point free (BundleAdjuster holds the oldest keyframe
+// for the gauge).
+void BaHandoff::fill_job(const TrackingMap& map, BaJob* job, BaKind kind) {
   job->clear();
-  job->kind = global ? BaKind::kGlobal : BaKind::kWindow;
+  job->kind = kind;
   job->version = ++version_;
-  // The first window jobs also test the calibration's focal length.
-  if (!global && config_.check_calibration && config_.ba.w_shape > 0 &&
-      calibration_jobs_ < config_.calibration_test_jobs) {
-    job->test_focal = true;
-    ++calibration_jobs_;
-  }
+  job->test_focal = kind == BaKind::kFocalTest;
+  const bool global = kind == BaKind::kGlobal;
   int n = 0;
   for (int k = 0; k < map.keyframe_capacity(); ++k)
     if (map.keyframe(k).alive) order_[static_cast<std::size_t>(n++)] = k;
@@ -172,8 +185,9 @@ void BaHandoff::fill_job(const TrackingMap& map, BaJob* job, bool global) {
     if (index >= 0) add_job_links(map, job, id, index, true);
   }
   for (int j = window; j < n; ++j) add_job_links(map, job, order_[static_cast<std::size_t>(j)], -1, false);
-  // The registration prior, when frame 0's keyframe is free in this job.
-  if (registration_free(map)) {
+  // The registration prior, when frame 0's keyframe is free in this job
+  // (the focal test's solves take none).
+  if (kind != BaKind::kFocalTest && registration_free(map)) {
     const int index = keyframe_index_[static_cast<std::size_t>(init_keyframe_)];
     if (index >= 0 && !job->keyframes[static_cast<std::size_t>(index)].fixed)
       job->set_prior(index, T_init_, config_.registration_sigma_deg * M_PI / 180.0, config_.registration_sigma_mm);

@@ -1,6 +1,6 @@
 // The tracker's side of bundle adjustment: which jobs to hand out, filling
 // them from the map, applying the solved ones, and the calibration's focal
-// test that rides on the first window jobs.
+// test after the first window jobs.
 //
 // After a keyframe a window job is pending (and, while frame 0's keyframe
 // carries the registration prior, a global one every
@@ -14,7 +14,11 @@
 // from the previous corrections; a job handed out before the last reset()
 // is not applied.
 //
-// The focal test (TrackerConfig::check_calibration): each tested job's
+// The focal test (TrackerConfig::check_calibration): after each of the
+// first calibration_test_jobs window jobs is applied, a job of its own
+// (BaKind::kFocalTest, the same window from the corrected map) when no
+// correction is pending, so that the test's two solves never delay a
+// window's correction; nothing of it is written into the map. Each test's
 // summary is a vote when its data fits focal lengths clearly off (F above
 // calibration_min_f and |s - 1| above calibration_scale_error);
 // calibration_votes votes in a row on the same side of 1 judge the
@@ -66,20 +70,20 @@ class BaHandoff {
   void judge_calibration(const BaSummary& s);
   int add_job_keyframe(const TrackingMap& map, BaJob* job, int keyframe_id, bool fixed);
   void add_job_links(const TrackingMap& map, BaJob* job, int keyframe_id, int job_keyframe, bool add_points);
-  void fill_job(const TrackingMap& map, BaJob* job, bool global);
+  void fill_job(const TrackingMap& map, BaJob* job, BaKind kind);
 
   TrackerConfig config_;
   SE3 T_init_;
   std::array<double, kMaxPyramidLevels> octave_info_{};  // per octave: 1 / sigma^2
   BaChannel* channel_ = nullptr;  // not owned
-  bool window_pending_ = false, global_pending_ = false;
+  bool window_pending_ = false, global_pending_ = false, focal_pending_ = false;
   // Frame 0's keyframe (slot and stamp; -1: none) while it carries the
   // registration prior, and the keyframes since the last global job.
   int init_keyframe_ = -1, init_keyframe_frame_ = -1;
   int keyframes_since_global_ = 0;
   std::uint32_t version_ = 0;      // of the last job handed out (never reset)
   std::uint32_t min_version_ = 0;  // jobs below this came from before reset(): not applied
-  int calibration_jobs_ = 0;       // window jobs handed out with the focal test
+  int calibration_jobs_ = 0;       // focal-test jobs handed out
   CalibrationCheck calibration_;
   std::vector<std::int32_t> point_index_;     // per map point slot: its index in the job being filled
   std::vector<std::int32_t> keyframe_index_;  // per keyframe slot: likewise

@@ -221,12 +221,14 @@ struct TrackerConfig {
   // 0 (live): a solved job is applied at the first frame that finds it
   // solved, so where corrections land depends on the machine's speed. N > 0
   // (deterministic replays and tests): a job is applied exactly N frames
-  // after it was handed over, the tracking thread waiting for the solve if
-  // it must, and solves stop by iteration count, not time. Read by the
+  // after it was handed over (a focal test's: at the next frame), the
+  // tracking thread waiting for the solve if it must, and solves stop by
+  // iteration count, not time. Read by the
   // mapping side (firmware_app/mapping_worker.h).
   int ba_lag_frames = 0;
-  // The calibration's focal length, tested by the first window BA jobs
-  // (BaJob::test_focal; needs BA and the shape residual). A scope
+  // The calibration's focal length, tested after each of the first window
+  // BA jobs by a job of its own (BaKind::kFocalTest, handed out when no
+  // correction is pending; needs BA and the shape residual). A scope
   // calibrated at another zoom, or another scope's calibration, moves every
   // pose by degrees and mm while tracking stays self-consistent: on the
   // simulated orbit with fx, fy 15 % too long, 0 % lost and 9 % of the
@@ -244,7 +246,7 @@ struct TrackerConfig {
   // scatter of a weak window (s = 1.13 at F = 8). docs/design-notes.md, "The
   // focal-length test".
   bool check_calibration = true;
-  int calibration_test_jobs = 6;  // window jobs tested (the first ones; each costs two more solves)
+  int calibration_test_jobs = 6;  // window jobs followed by a test (the first ones; a test is two solves)
   double calibration_min_f = 100.0;
   double calibration_scale_error = 0.05;
   int calibration_votes = 2;

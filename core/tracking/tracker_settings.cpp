@@ -142,8 +142,8 @@ const std::array kKeys = {
     ST_SETTING(registration_sigma_mm, 0, 1000, "prior on frame 0's pose: translation sigma, mm (with _deg)"),
     ST_SETTING(ba_registration_keyframes, 0, 1000, "a global solve every N keyframes while refining (0: none)"),
     // The calibration's focal-length test.
-    ST_SETTING(check_calibration, 0, 1, "test the focal length against the mesh in the first window solves"),
-    ST_SETTING(calibration_test_jobs, 0, 1000, "window solves tested"),
+    ST_SETTING(check_calibration, 0, 1, "test the focal length against the mesh after the first window solves"),
+    ST_SETTING(calibration_test_jobs, 0, 1000, "window solves followed by a focal test"),
     ST_SETTING(calibration_min_f, 0.001, 1e9, "a vote needs F above this"),
     ST_SETTING(calibration_scale_error, 0.001, 0.999, "... and a focal scale this far from 1"),
     ST_SETTING(calibration_votes, 1, 100, "votes in a row that judge the calibration suspect"),

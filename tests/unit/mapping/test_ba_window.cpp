@@ -521,6 +521,25 @@ TEST_CASE("ba window: the focal test finds focal lengths 10 % off and leaves the
               plain.job.keyframes[static_cast<std::size_t>(k)].pose[c]);
     for (int i = 0; i < tested.job.point_count; ++i)
       CHECK((tested.job.point(i) - plain.job.point(i)).norm() == 0.0);
+    // The test as a job of its own (BaKind::kFocalTest, what the tracker
+    // hands out after a window) from the plain solve's solution: the same
+    // s and F, and the job comes back as it went.
+    BaJob test = plain.job;
+    test.kind = BaKind::kFocalTest;
+    REQUIRE(ba_plain.solve(&test));
+    CHECK(test.summary.focal_tested);
+    CHECK(test.summary.focal_scale == s.focal_scale);
+    CHECK(test.summary.focal_f == s.focal_f);
+    for (int k = 0; k < test.keyframe_count; ++k)
+      for (int c = 0; c < kPoseParams; ++c)
+        CHECK(test.keyframes[static_cast<std::size_t>(k)].pose[c] == plain.job.keyframes[static_cast<std::size_t>(k)].pose[c]);
+    for (int i = 0; i < test.point_count; ++i) CHECK((test.point(i) - plain.job.point(i)).norm() == 0.0);
+    if (!wrong) {  // without the shape residual nothing ties the structure to the metric mesh: refused
+      BundleAdjuster no_shape;
+      REQUIRE(configure_for(no_shape, options(0.0), mesh, K_ba, test));
+      CHECK_FALSE(no_shape.solve(&test));
+      CHECK(test.summary.refusal == BaRefusal::kNothingToSolve);
+    }
   }
   const SE3 G(so3_exp(2.0 * M_PI / 180.0 * Vec3(1, 1, 1).normalized()), 4.0 * Vec3(1, 1, 1).normalized());
   BaWindow coarse = registration_window(mesh, K, G);

@@ -336,7 +336,7 @@ TEST_CASE("BA hand-off: a window job after a keyframe, newest keyframes free, ap
   CHECK_FALSE(channel.out_);  // released all the same
 }
 
-TEST_CASE("BA hand-off: the focal test judges the calibration suspect after the configured votes in a row") {
+TEST_CASE("BA hand-off: a focal test follows each of the first window jobs, writes nothing, and votes") {
   PlaneMap m(20);
   TrackerConfig c;
   c.max_map_points = 256;
@@ -350,16 +350,39 @@ TEST_CASE("BA hand-off: the focal test judges the calibration suspect after the 
   TrackResult r;
   r.keyframe = true;
   r.state = TrackState::kTracking;
-  const auto one_job = [&](double scale, double f, int frame) {
-    channel.focal_scale = scale;
-    channel.focal_f = f;
+  const SE3 window_pose(Mat3::Identity(), Vec3(1, 2, 3)), test_pose(Mat3::Identity(), Vec3(7, 7, 7));
+  const auto window_job = [&] {
+    channel.moved = window_pose;
     ba.frame_done(m.map, r);
     REQUIRE(ba.submit(m.map, true));
-    CHECK(channel.job_.test_focal);
+    CHECK(channel.job_.kind == BaKind::kWindow);
+    CHECK_FALSE(channel.job_.test_focal);
     REQUIRE(ba.apply(&m.map));
+  };
+  const auto test_job = [&](double scale, double f, int frame) {
+    channel.focal_scale = scale;
+    channel.focal_f = f;
+    channel.moved = test_pose;
+    REQUIRE(ba.submit(m.map, true));
+    CHECK(channel.job_.kind == BaKind::kFocalTest);
+    CHECK(channel.job_.test_focal);
+    CHECK(channel.job_.prior.keyframe < 0);
+    CHECK_FALSE(ba.apply(&m.map));  // nothing written into the map
+    CHECK_FALSE(channel.out_);
+    for (int k = 0; k < m.map.keyframe_capacity(); ++k)
+      if (m.map.keyframe(k).alive) CHECK_FALSE(m.map.keyframe(k).T_camera_model.translation().isApprox(Vec3(7, 7, 7)));
     ba.note_frame(frame);
   };
-  one_job(1.12, 500, 1);   // a vote
+  const auto one_job = [&](double scale, double f, int frame) {
+    window_job();
+    test_job(scale, f, frame);
+  };
+  CHECK_FALSE(ba.submit(m.map, true));  // nothing pending before a window
+  // A keyframe's window goes before a pending test.
+  window_job();
+  window_job();
+  test_job(1.12, 500, 1);  // a vote
+  CHECK_FALSE(ba.submit(m.map, true));  // one test per applied window
   one_job(1.01, 500, 2);   // within 5 %: the count restarts
   one_job(1.12, 500, 3);
   CHECK_FALSE(ba.calibration().suspect);
@@ -372,9 +395,8 @@ TEST_CASE("BA hand-off: the focal test judges the calibration suspect after the 
   CHECK(ba.calibration().suspect_frame == 7);
   CHECK(ba.calibration().focal_scale == doctest::Approx(0.88));
   CHECK(ba.calibration().tests == 7);
-  // Only the first calibration_test_jobs jobs carry the test.
+  // Only the first calibration_test_jobs windows are followed by a test.
   for (int k = 0; k < 3; ++k) one_job(1.0, 0, 8 + k);
-  ba.frame_done(m.map, r);
-  REQUIRE(ba.submit(m.map, true));
-  CHECK_FALSE(channel.job_.test_focal);
+  window_job();
+  CHECK_FALSE(ba.submit(m.map, true));
 }
