@@ -76,11 +76,13 @@ void MappingWorker::release_job(const BaJob* job) {
 
 void MappingWorker::run() {
   stats_.thread_nice = platform::become_background_thread();
+  const std::uint64_t allocations0 = platform::thread_allocation_count();
   for (;;) {
     std::int32_t slot = -1;
     queue_.pop_wait(&slot);
     if (slot < 0) return;
     solve_one();
+    stats_.thread_allocations = platform::thread_allocation_count() - allocations0;
     state_.store(kSolved, std::memory_order_release);
   }
 }
@@ -136,6 +138,7 @@ void MappingWorker::append_summary(std::vector<std::pair<std::string, double>>* 
   fields->emplace_back("ba_mean_window_observations", s.mean_window_observations);
   fields->emplace_back("ba_mean_window_fixed_observations", s.mean_window_fixed_observations);
   fields->emplace_back("ba_max_allocations_per_solve", static_cast<double>(s.max_allocations_per_solve));
+  fields->emplace_back("ba_thread_allocations", static_cast<double>(s.thread_allocations));
   fields->emplace_back("ba_mean_surface_distance_mm", s.mean_surface_distance_mm);
   fields->emplace_back("ba_thread_nice", s.thread_nice);
   fields->emplace_back("ba_registration_tests", s.registration_tests);

@@ -41,6 +41,7 @@ struct MappingStats {
   int window_solves = 0, global_solves = 0, focal_tests = 0, unusable = 0;
   double solve_median_ms = 0, solve_p99_ms = 0, solve_max_ms = 0;  // wall time of solve()
   std::uint64_t max_allocations_per_solve = 0;  // mapping thread, inside solve()
+  std::uint64_t thread_allocations = 0;         // mapping thread, from its start to its last job
   double mean_surface_distance_mm = -1;         // of the last usable job's points after the solve
   double mean_window_observations = 0;          // reprojection residuals per window solve
   double mean_window_fixed_observations = 0;    // of those: from fixed keyframes

@@ -107,7 +107,7 @@ RunResult run_orbit(const TrackerConfig& cfg, BaChannel* channel) {
 
 }  // namespace
 
-TEST_CASE("ba tracker: the tracking thread allocates nothing while the mapping thread runs BA") {
+TEST_CASE("ba tracker: neither the tracking nor the mapping thread allocates while BA runs") {
   REQUIRE(platform::allocation_counting_enabled());
   const RenderedOrbit& s = orbit40();
   Image<std::uint8_t> black(s.K.width, s.K.height);
@@ -137,11 +137,15 @@ TEST_CASE("ba tracker: the tracking thread allocates nothing while the mapping t
   const app::MappingStats m = worker.stats();
   MESSAGE("220 steps: " << posed << " poses, " << relocalised << " relocalisations, " << submitted
                         << " jobs submitted, " << applied << " applied; mapping thread: " << m.window_solves
-                        << " window + " << m.global_solves << " global solves, median " << m.solve_median_ms
+                        << " window + " << m.global_solves << " global solves + " << m.focal_tests
+                        << " focal tests, median " << m.solve_median_ms
                         << " ms, max " << m.solve_max_ms << " ms, <= " << m.max_allocations_per_solve
                         << " allocations per solve; " << m.mean_window_observations << " observations per window ("
                         << m.mean_window_fixed_observations << " from fixed keyframes)");
   CHECK(allocations == 0);
+  CHECK(m.thread_allocations == 0);  // every solve: window, global, focal test
+  CHECK(m.max_allocations_per_solve == 0);
+  CHECK(m.focal_tests >= 1);
   CHECK(submitted >= 3);
   CHECK(applied >= 2);
   CHECK(m.window_solves >= 2);
