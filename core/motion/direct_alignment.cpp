@@ -380,7 +380,12 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
       J(6) = -intensity_[static_cast<std::size_t>(i)];
       J(7) = -1.0;
       const double wgt = std::abs(r) <= k ? 1.0 : k / std::abs(r);
-      H.selfadjointView<Eigen::Lower>().rankUpdate(J, wgt);  // the lower half: all LDLT reads
+      // H += wgt J J^T, the lower half (all LDLT reads), written out:
+      // Eigen's rankUpdate is a call per sample with a run-time size.
+      for (int c = 0; c < 8; ++c) {
+        const double t = wgt * J(c);
+        for (int q = c; q < 8; ++q) H(q, c) += t * J(q);
+      }
       g.noalias() += wgt * r * J;
     }
     H_last = H.selfadjointView<Eigen::Lower>();

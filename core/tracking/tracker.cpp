@@ -296,6 +296,11 @@ void TrackerImpl::lap(Stage s, double* t_last_ms, TrackResult* r) const {
 }
 
 void TrackerImpl::render_at(const SE3& T_camera_model) {
+  // The same pose renders the same buffers (a lost frame's dead reckoning
+  // and the shading's alignment often start from one reference frame).
+  if (raster_valid_ && T_camera_model.rotation() == raster_pose_.rotation() &&
+      T_camera_model.translation() == raster_pose_.translation())
+    return;
   raster_.render(T_camera_model, K_);
   raster_pose_ = T_camera_model;
   raster_valid_ = true;

@@ -10,9 +10,6 @@ namespace st {
 
 namespace {
 Vec3 centre_of(const SE3& T_camera_model) { return -(T_camera_model.rotation().transpose() * T_camera_model.translation()); }
-bool same_pose(const SE3& a, const SE3& b) {
-  return a.rotation() == b.rotation() && a.translation() == b.translation();
-}
 }  // namespace
 
 // Frame 0: the pose is given (T_camera_model_init); every keypoint on the
@@ -80,7 +77,7 @@ bool TrackerImpl::surface_point(const Vec2& px_ideal, Vec3* p_model) const {
 int TrackerImpl::add_keyframe(const SE3& T_camera_model, int frame_index, bool link_inliers, bool anchored) {
   const int kf = map_.add_keyframe(T_camera_model, frame_index, ref_keyframe_);
   if (kf < 0) return -1;
-  if (!raster_valid_ || !same_pose(raster_pose_, T_camera_model)) render_at(T_camera_model);
+  render_at(T_camera_model);  // (a no-op when the last render was at this pose)
   const FeatureSet& f = *features_;
   const auto link_of = [&](int k, int point) {
     const Keypoint& kp = f.keypoints[static_cast<std::size_t>(k)];
