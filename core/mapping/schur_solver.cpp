@@ -267,8 +267,6 @@ bool SchurSolver::evaluate_shapes(bool candidate, bool linearize, double* cost) 
   for (int a = 0; a < active_count_; ++a) {
     const auto p = static_cast<std::size_t>(active_points_[static_cast<std::size_t>(a)]);
     if (shape_[p] == ShapeKind::kNone) continue;
-    Vec3 r = Vec3::Zero();
-    Mat33r J = Mat33r::Zero();
     if (shape_[p] == ShapeKind::kPlane) {
       // One row, r = sqrt_w n . (f - foot), J = sqrt_w n^T: a rank-one block.
       double r2[2];
@@ -285,6 +283,8 @@ bool SchurSolver::evaluate_shapes(bool candidate, bool linearize, double* cost) 
       g_point_[p].noalias() += j * shape_r_[p][0];
       continue;
     }
+    Vec3 r = Vec3::Zero();
+    Mat33r J = Mat33r::Zero();
     if (!res_.surface ||
         !shape_cost(*res_.surface, res_.sqrt_w_shape, points[p].data(), r.data(), linearize ? J.data() : nullptr))
       return false;

@@ -21,8 +21,8 @@
 // an edge, I at a vertex), which the shape residual uses as its Jacobian.
 //
 // Memory: the 4-wide nodes (128 bytes each, ~1 per 3 leaves) and a copy of
-// the triangles' vertices in leaf order (float, as the mesh holds them: the
-// search is memory-bound, so half the bytes of double), ~90 bytes per triangle;
+// the triangles' vertices in leaf order (float, as the mesh holds them: half
+// the bytes of double, the same results), ~90 bytes per triangle;
 // built once in configure() (allocates). closest() allocates nothing (a
 // fixed traversal stack) and is const: any thread.
 #pragma once
