@@ -36,6 +36,14 @@ inline double budget_s(double seconds) {
 // leaves them to the Release pass, which runs everything.
 inline constexpr const char* kLongSuite = "long";
 
+// Test cases that start one of the project's programs (tools/, scopetrack)
+// but are short are in the doctest suite "process". All other unit test
+// cases carry the CTest label "portable": the aarch64 build runs them under
+// qemu-aarch64 (tools/cross-aarch64.sh), where a program of the build
+// cannot be started without binfmt. (Host programs such as ffmpeg and flatc
+// can: a test that starts only those stays portable.)
+inline constexpr const char* kProcessSuite = "process";
+
 // Reads a whole file into bytes (test fixtures).
 std::string read_file_bytes(const std::filesystem::path& p);
 

@@ -110,7 +110,7 @@ TEST_CASE("libcamera capture: no camera attached -> open() refuses and says what
 
 TEST_CASE(
     "libcamera capture: scopetrack --camera / --list-cameras without a camera exit non-zero and "
-    "say why") {
+    "say why" * doctest::test_suite(test::kProcessSuite)) {
   const auto dir = test::scratch_dir("libcamera_app");
   REQUIRE(write_file(dir / "calibration.yaml", kCalibration).ok());
   REQUIRE(write_file(dir / "bad.yaml", "image_width: 640\n").ok());

@@ -89,7 +89,8 @@ TEST_CASE("scopetrack-eval: dropped and shifted frames give the independently co
   (void)tiny;
 }
 
-TEST_CASE("scopetrack-eval: malformed input is a clear error and a non-zero exit") {
+TEST_CASE("scopetrack-eval: malformed input is a clear error and a non-zero exit" *
+          doctest::test_suite(test::kProcessSuite)) {
   const auto seq = test::scratch_dir("eval_seq_bad");
   test::write_tiny_sequence(seq, 5);
   const auto out = test::scratch_dir("eval_out_bad");

@@ -173,7 +173,7 @@ TEST_CASE("register: too few pairs, picks outside the image and degenerate point
 // 6 mm off: picks made from the true pose bring it back, --write stores it
 // (and keeps the old file), and a broken pairs file is refused.
 TEST_CASE("register: scopetrack-register --write restores a sequence's registration from picks" *
-          doctest::timeout(test::budget_s(120))) {
+          doctest::timeout(test::budget_s(120)) * doctest::test_suite(test::kProcessSuite)) {
   const auto dir = test::scratch_dir("register_cli");
   const auto seq = dir / "seq";
   REQUIRE(test::run_shell(test::bin_command("scopetrack-sim") + " --scenario orbit --frames 2 --size 640x360 --out " +

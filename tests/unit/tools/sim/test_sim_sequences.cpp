@@ -232,7 +232,8 @@ TEST_CASE("sim sequence: bad options are refused with a message") {
   CHECK_FALSE(run_simulation(o).ok());
 }
 
-TEST_CASE("sim CLI: --shutter, --organ-detail, --smoke and --organ refuse what they do not take, writing nothing") {
+TEST_CASE("sim CLI: --shutter, --organ-detail, --smoke and --organ refuse what they do not take, writing nothing" *
+          doctest::test_suite(st::test::kProcessSuite)) {
   const auto dir = st::test::scratch_dir("sim_cli_bad");
   const std::string log = (dir / "log").string();
   // args refused with exit 2 and a message holding says; nothing written.
@@ -270,7 +271,8 @@ TEST_CASE("sim CLI: --shutter, --organ-detail, --smoke and --organ refuse what t
   CHECK_FALSE(std::filesystem::exists(dir / "seq" / "video.y4m"));
 }
 
-TEST_CASE("sim and console CLI: --help prints the usage on stdout and exits 0") {
+TEST_CASE("sim and console CLI: --help prints the usage on stdout and exits 0" *
+          doctest::test_suite(st::test::kProcessSuite)) {
   const auto dir = st::test::scratch_dir("cli_help");
   for (const char* tool : {"scopetrack-sim", "scopetrack-console"}) {
     CAPTURE(tool);
