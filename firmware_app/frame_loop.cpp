@@ -51,7 +51,13 @@ void FrameLoop::run() {
   const std::uint64_t allocs0 = platform::thread_allocation_count();
   const bool paced = source->paced();
   std::int64_t t_prev_done_ns = t0_ns;
+  int prev_index = -1;
+  double prev_timestamp_s = 0;
   for (;;) {
+    if (stop_signal != nullptr && stop_signal->load(std::memory_order_relaxed) != 0) {
+      stats.stop_signal = stop_signal->load(std::memory_order_relaxed);
+      break;
+    }
     SourceFrame in;
     source->next(&in);
     if (in.kind == SourceFrame::Kind::kEnd) break;
@@ -59,6 +65,12 @@ void FrameLoop::run() {
       source_error = true;  // the message is read after the loop (copying it allocates)
       break;
     }
+    if (prev_index >= 0) {
+      if (in.frame.index > prev_index + 1) stats.dropped_frames += in.frame.index - prev_index - 1;
+      if (!(in.timestamp_s > prev_timestamp_s)) ++stats.timestamp_faults;
+    }
+    prev_index = in.frame.index;
+    prev_timestamp_s = in.timestamp_s;
     const TrackResult r = processor->step(in.frame);
     const std::int64_t t_done_ns = platform::monotonic_ns();
     // Read as fast as possible, a file runs ahead on purpose: a frame's
@@ -116,7 +128,10 @@ std::string format_run_summary(const RunStats& s, bool realtime,
                {"max_latency_ms", s.max_latency_ms},
                {"wall_time_s", s.wall_s},
                {"realtime", realtime ? 1.0 : 0.0},
-               {"writer_stalls", s.writer_stalls}};
+               {"writer_stalls", s.writer_stalls},
+               {"dropped_frames", s.dropped_frames},
+               {"timestamp_faults", s.timestamp_faults},
+               {"stop_signal", s.stop_signal}};
   sum.extra.insert(sum.extra.end(), extra.begin(), extra.end());
   std::string json = format_summary_json(sum);
   if (!s.error.empty()) {

@@ -67,7 +67,12 @@ struct RunStats {
   double peak_rss_mb = 0;
   std::int64_t tracking_thread_allocations = 0;
   int writer_stalls = 0;  // frames on which the tracking thread waited for the writer
-  std::string error;      // empty: the whole stream was processed and written
+  // The capture's faults, as the frames' numbers and times show them (the
+  // frames are tracked all the same; the tracker's state stays its own):
+  int dropped_frames = 0;    // frames missing from the numbering (a jump of k counts k - 1)
+  int timestamp_faults = 0;  // frames whose time is not after the previous frame's
+  int stop_signal = 0;       // the signal that ended the run early (FrameLoop::stop_signal), else 0
+  std::string error;         // empty: the whole stream was processed and written
 };
 
 // What an owner thread reads while the loop runs (a live status line).
@@ -86,6 +91,10 @@ struct FrameLoop {
   RunWriter* writer = nullptr;        // optional: rows to trajectory.txt / frames.csv
   FrameObserver* observer = nullptr;  // optional
   LoopStatus* status = nullptr;       // optional
+  // Optional: set (to a signal number) by another thread to end the run
+  // after the current frame, as if the stream had ended; the number goes to
+  // stats.stop_signal.
+  const std::atomic<int>* stop_signal = nullptr;
   LatencyHistogram latency;
   RunStats stats;
   bool source_error = false;  // the source ended with kError (its error() says why)

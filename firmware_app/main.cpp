@@ -1,6 +1,7 @@
 // scopetrack: the tracker application. main() is the only place that exits.
 // Modes are rows of kCommands; add a row (and a file) for a new mode.
 #include <array>
+#include <csignal>
 #include <cstdio>
 #include <string_view>
 
@@ -48,6 +49,10 @@ int run_help(st::app::Args) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // A file-size limit reached (SIGXFSZ) or a closed pipe (SIGPIPE) is a
+  // write error the writers report, not a reason to end tracking.
+  std::signal(SIGXFSZ, SIG_IGN);
+  std::signal(SIGPIPE, SIG_IGN);
   if (argc >= 2) {
     for (const auto& c : kCommands)
       if (c.flag == argv[1]) return c.run(st::app::Args(argv + 2, static_cast<std::size_t>(argc - 2)));

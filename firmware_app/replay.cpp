@@ -36,6 +36,7 @@ Result<RunStats> run_replay(const LoadedSequence& sequence, FrameProcessor& proc
   loop->processor = &processor;
   loop->writer = writer.get();
   loop->observer = options.observer;
+  loop->stop_signal = options.stop_signal;
   writer->start({options.progress, estimate_frame_count(sequence), 0.25});
   // Spawning the capture thread allocates: before the loop counts.
   if (Status s = capture->start(); !s) return Error{s.message()};

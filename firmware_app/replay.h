@@ -8,6 +8,7 @@
 // carries an "error" field.
 #pragma once
 
+#include <atomic>
 #include <filesystem>
 #include <string>
 #include <utility>
@@ -25,6 +26,10 @@ struct ReplayOptions {
   bool progress = false;   // progress line on stderr (the caller checks isatty)
   int ring_slots = 6;      // capture ring: frames queued or in use at once
   FrameObserver* observer = nullptr;  // optional, called on the tracking thread
+  // Optional: set to a signal number by another thread to end the replay
+  // after the current frame (FrameLoop::stop_signal); what was tracked is
+  // written and summary.json says "stop_signal".
+  const std::atomic<int>* stop_signal = nullptr;
   // More numeric fields for summary.json (configuration, for the record).
   std::vector<std::pair<std::string, double>> summary_extra;
 };

@@ -5,13 +5,22 @@
 // folder. Exit status: 0 done (with a warning on stderr if the calibration
 // was judged suspect: TrackerConfig::check_calibration), 1 the sequence or
 // the replay failed (a clear message on stderr; the output written so far
-// stays), 2 bad command line or settings.
+// stays), 2 bad command line or settings, 128 + the signal's number (130,
+// 143) when SIGINT or SIGTERM ended it early: the frames tracked until then
+// are written, summary.json included (its "stop_signal"). A second signal
+// while the first is being handled (a video pipe that stalls) exits at once
+// with the same status; the rows written so far stay.
 
+#include <pthread.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <atomic>
 #include <cstdio>
 #include <cstring>
 #include <memory>
 #include <string>
-#include <unistd.h>
+#include <thread>
 
 #include "core/base/capacity.h"
 #include "core/formats/text_scan.h"
@@ -129,6 +138,43 @@ std::unique_ptr<StreamLink> start_stream_link(const ReplayArgs& a, const LoadedS
   return link;
 }
 
+// SIGINT and SIGTERM, blocked in every thread (the mask is inherited) and
+// taken by one watcher: the first asks the frame loop to stop after the
+// current frame, a second exits at once.
+class SignalWatcher {
+ public:
+  // Before any other thread exists.
+  SignalWatcher() {
+    sigemptyset(&signals_);
+    sigaddset(&signals_, SIGINT);
+    sigaddset(&signals_, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &signals_, nullptr);
+    thread_ = std::thread([this] { run(); });
+  }
+  ~SignalWatcher() {
+    done_.store(true);
+    thread_.join();
+  }
+  SignalWatcher(const SignalWatcher&) = delete;
+  SignalWatcher& operator=(const SignalWatcher&) = delete;
+  const std::atomic<int>* stop_signal() const { return &signal_; }
+
+ private:
+  void run() {
+    const timespec tick{0, 100'000'000};
+    while (!done_.load()) {
+      const int sig = sigtimedwait(&signals_, nullptr, &tick);
+      if (sig != SIGINT && sig != SIGTERM) continue;
+      if (signal_.load() != 0) _exit(128 + signal_.load());
+      signal_.store(sig);
+    }
+  }
+  sigset_t signals_;
+  std::atomic<int> signal_{0};
+  std::atomic<bool> done_{false};
+  std::thread thread_;
+};
+
 }  // namespace
 
 int run_replay(Args argv) {
@@ -140,6 +186,7 @@ int run_replay(Args argv) {
                  "         [--stream tcp://HOST:PORT|unix:PATH [--stream-wait N] [--texture-every K]]\n");
     return 2;
   }
+  SignalWatcher signals;
   auto seq = load_sequence(args.sequence);
   if (!seq) {
     std::fprintf(stderr, "scopetrack: cannot use sequence %s: %s\n", args.sequence.c_str(), seq.message().c_str());
@@ -175,6 +222,7 @@ int run_replay(Args argv) {
   opt.realtime = args.realtime;
   opt.progress = ::isatty(STDERR_FILENO) == 1;
   opt.ring_slots = args.ring_slots;
+  opt.stop_signal = signals.stop_signal();
   opt.summary_extra = {{"use_mask", tc.use_mask ? 1.0 : 0.0},
                        {"use_occluder_mask", tc.use_occluder_mask ? 1.0 : 0.0}, {"use_ba", tc.use_ba ? 1.0 : 0.0},
                        {"use_image_motion", tc.use_image_motion ? 1.0 : 0.0},
@@ -191,6 +239,11 @@ int run_replay(Args argv) {
     return 1;
   }
   print_result(stats.value(), args.out);
+  if (const int sig = stats->stop_signal; sig != 0) {
+    std::fprintf(stderr, "scopetrack: stopped by %s after %d frames (their output is in %s)\n",
+                 sig == SIGINT ? "SIGINT" : "SIGTERM", stats->frames, args.out.c_str());
+    return 128 + sig;
+  }
   if (!stats->error.empty()) {
     std::fprintf(stderr, "scopetrack: replay stopped after %d frames: %s (output so far is in %s)\n",
                  stats->frames, stats->error.c_str(), args.out.c_str());

@@ -75,8 +75,12 @@ void RunWriter::write_row(const FrameRow& row) {
 void RunWriter::flush() {
   for (std::FILE* f : {trajectory_, frames_}) {
     if (!f) continue;
-    if ((std::fflush(f) != 0 || std::ferror(f)) && write_error_.empty())
+    if ((std::fflush(f) != 0 || std::ferror(f)) && write_error_.empty()) {
+      // Said once, when it happens (a disk that fills): tracking and
+      // streaming go on, the rows that follow are lost, finish() returns it.
       write_error_ = "writing the tracker output in " + out_dir_.string() + " failed: " + std::strerror(errno);
+      std::fprintf(stderr, "\nscopetrack: %s; tracking goes on without it\n", write_error_.c_str());
+    }
   }
 }
 

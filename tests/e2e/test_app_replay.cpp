@@ -3,12 +3,17 @@
 // tracking thread, and what happens when the video breaks off.
 #include <doctest/doctest.h>
 
+#include <sys/resource.h>
+
+#include <atomic>
+#include <csignal>
 #include <fstream>
 #include <sstream>
 
 #include "hal/storage/file_io.h"
 #include "firmware_app/replay.h"
 #include "platform/clock.h"
+#include "support/shell.h"
 #include "support/support.h"
 #include "support/tiny_sequence.h"
 #include "tools/eval/eval_report.h"
@@ -56,6 +61,18 @@ class LeakyProcessor : public OracleProcessor {
     return OracleProcessor::step(f);
   }
   std::vector<std::unique_ptr<int>> kept_{};
+};
+
+// Counts the frames it sees; at frame stop_at (if >= 0) asks the loop to
+// stop as a signal would.
+class StopObserver final : public FrameObserver {
+ public:
+  void frame_done(const FrameRef& f, const TrackResult&, double) override {
+    ++frames;
+    if (f.index == stop_at) stop.store(SIGTERM);
+  }
+  int frames = 0, stop_at = -1;
+  std::atomic<int> stop{0};
 };
 
 template <class R>
@@ -209,4 +226,96 @@ TEST_CASE("app_replay: an unreadable output folder or video fails before trackin
   auto stats2 = run_replay(broken, oracle, opt);
   REQUIRE_FALSE(stats2.ok());
   CHECK(stats2.message().find("missing.y4m") != std::string::npos);
+}
+
+TEST_CASE("app_replay: a disk that fills mid-run: every frame tracked and observed, the error kept for "
+          "summary.json") {
+  const auto dir = test::scratch_dir("app_replay_full");
+  test::write_tiny_sequence(dir / "seq", 400);
+  const LoadedSequence seq = load(dir / "seq");
+  OracleProcessor oracle(seq.groundtruth, 0);
+  StopObserver observer;
+  ReplayOptions opt;
+  opt.out_dir = dir / "out";
+  opt.observer = &observer;
+  // A file-size limit of 4 KB for this process: trajectory.txt and
+  // frames.csv (about 10 and 13 KB for 400 rows) reach it mid-run, as a
+  // filling disk would; summary.json stays below it.
+  rlimit old{};
+  REQUIRE(::getrlimit(RLIMIT_FSIZE, &old) == 0);
+  rlimit small = old;
+  small.rlim_cur = 4 * 1024;
+  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+  REQUIRE(::setrlimit(RLIMIT_FSIZE, &small) == 0);
+  auto stats = run_replay(seq, oracle, opt);
+  ::setrlimit(RLIMIT_FSIZE, &old);
+  std::signal(SIGXFSZ, old_handler);
+  REQUIRE_MESSAGE(stats.ok(), why(stats));
+  CHECK(stats->frames == 400);  // tracking went on
+  CHECK(observer.frames == 400);  // and so did the console link's side
+  CHECK(stats->tracking_thread_allocations == 0);
+  CHECK(stats->error.find("writing the tracker output") != std::string::npos);
+  CHECK(std::filesystem::file_size(opt.out_dir / "trajectory.txt") <= 4 * 1024);
+  CHECK(std::filesystem::file_size(opt.out_dir / "frames.csv") <= 4 * 1024);
+  CHECK(lines_of(opt.out_dir / "frames.csv").size() > 10);  // the rows before the limit
+  const std::string summary = test::read_file_bytes(opt.out_dir / "summary.json");
+  CHECK(summary.find("writing the tracker output") != std::string::npos);
+}
+
+TEST_CASE("app_replay: a stop request ends the replay after the current frame, its output whole") {
+  const auto dir = test::scratch_dir("app_replay_stop");
+  test::write_tiny_sequence(dir / "seq", 200);
+  const LoadedSequence seq = load(dir / "seq");
+  OracleProcessor oracle(seq.groundtruth, 0);
+  StopObserver observer;
+  observer.stop_at = 49;
+  ReplayOptions opt;
+  opt.out_dir = dir / "out";
+  opt.observer = &observer;
+  opt.stop_signal = &observer.stop;
+  auto stats = run_replay(seq, oracle, opt);
+  REQUIRE_MESSAGE(stats.ok(), why(stats));
+  CHECK(stats->frames == 50);
+  CHECK(stats->stop_signal == SIGTERM);
+  CHECK(stats->error.empty());
+  CHECK(oracle.stopped_);
+  CHECK(lines_of(opt.out_dir / "frames.csv").size() == 51);
+  CHECK(lines_of(opt.out_dir / "trajectory.txt").size() == 50);
+  CHECK(summary_number(opt.out_dir, "frames") == 50);
+  CHECK(summary_number(opt.out_dir, "stop_signal") == SIGTERM);
+}
+
+TEST_CASE("app_replay: SIGINT and SIGTERM mid-replay: exit 130 and 143, the frames so far written whole" *
+          doctest::timeout(test::budget_s(120)) * doctest::test_suite(test::kProcessSuite)) {
+  const auto dir = test::scratch_dir("app_replay_signal");
+  // 200 frames: about 7 s paced at 30 frames/s (--realtime).
+  REQUIRE(test::run_shell(test::bin_command("scopetrack-sim") + " --scenario orbit --frames 200 --size 480x270 --out " +
+                          test::shell_quoted(dir / "seq") + " > /dev/null") == 0);
+  for (const auto& [name, number] : {std::pair{"INT", SIGINT}, std::pair{"TERM", SIGTERM}}) {
+    CAPTURE(name);
+    const auto out = dir / (std::string("out-") + name);
+    // Starts the paced replay, waits for 10 rows of frames.csv, signals it,
+    // writes its exit status.
+    const std::string script =
+        "app=" + test::bin_command("scopetrack") + "\n"
+        "\"$app\" --sequence " + test::shell_quoted(dir / "seq") + " --out " + test::shell_quoted(out) +
+        " --realtime > /dev/null 2> " + test::shell_quoted(dir / "err") + " &\n"
+        "pid=$!\n"
+        "for i in $(seq 600); do\n"
+        "  [ \"$(cat " + test::shell_quoted(out / "frames.csv") + " 2>/dev/null | wc -l)\" -gt 10 ] && break\n"
+        "  sleep 0.05\n"
+        "done\n"
+        "kill -" + name + " $pid\n"
+        "wait $pid\n"
+        "echo $? > " + test::shell_quoted(dir / "code") + "\n";
+    REQUIRE(write_file(dir / "run.sh", script).ok());
+    REQUIRE(test::run_shell("bash " + test::shell_quoted(dir / "run.sh")) == 0);
+    CHECK(std::stoi(test::read_file_bytes(dir / "code")) == 128 + number);
+    CHECK(test::read_file_bytes(dir / "err").find(std::string("stopped by SIG") + name) != std::string::npos);
+    const double frames = summary_number(out, "frames");
+    CHECK(frames >= 10);
+    CHECK(frames < 200);
+    CHECK(summary_number(out, "stop_signal") == number);
+    CHECK(static_cast<double>(lines_of(out / "frames.csv").size()) == frames + 1);
+  }
 }

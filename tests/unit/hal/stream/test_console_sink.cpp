@@ -1,13 +1,19 @@
 // The console sink in-process (hal/stream/stream_sink.h): consoles over Unix and
 // TCP sockets, the latest-wins and coalescing policies, a console that never
-// reads, reconnects, a full house.
+// reads, reconnects, a full house, and the faults of a console link (garbage
+// sent to the sink, a console stalled mid-message, a connection storm).
 #include <doctest/doctest.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
 #include <functional>
+#include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "hal/stream/stream_sink.h"
@@ -231,4 +237,112 @@ TEST_CASE(
   StreamHello no_mesh = cube_hello(cube);
   no_mesh.mesh_triangle_count = 0;
   CHECK_FALSE(other.configure(cfg, no_mesh).ok());
+}
+
+TEST_CASE(
+    "console_sink: a console that sends garbage, one that stalls mid-message and 50 connections a "
+    "second leave a good console and the tracking thread undisturbed" *
+    doctest::timeout(60)) {
+  const Mesh cube = test::centred_cube(40);
+  StreamSinkConfig cfg;
+  REQUIRE(platform::parse_endpoint("unix:" + socket_path("faults"), &cfg.endpoint, nullptr));
+  cfg.max_clients = 4;
+  cfg.health_period_s = 0.05;
+  StreamSink sink;
+  REQUIRE(sink.configure(cfg, cube_hello(cube)).ok());
+  sink.start();
+  TestConsole good(sink.endpoint());
+  // Stalls mid-message: takes the first 7 bytes of the hello, then reads
+  // nothing until the poses have been pushed.
+  TestConsole stall(sink.endpoint());
+  REQUIRE(sink.wait_for_consoles(2, 5));
+  std::vector<std::uint8_t> head(7);
+  REQUIRE(::recv(stall.fd.get(), head.data(), head.size(), MSG_WAITALL) == 7);
+
+  std::atomic<bool> pushing{true};
+  // Garbage: a console that writes random bytes as fast as the socket takes them.
+  std::atomic<std::uint64_t> garbage_bytes{0};
+  std::thread garbage([&] {
+    std::string err;
+    platform::Fd fd = platform::connect_to(sink.endpoint(), &err);
+    if (!fd.valid()) return;
+    std::vector<std::uint8_t> junk(4096);
+    std::uint32_t x = 12345;
+    while (pushing.load()) {
+      for (auto& b : junk) b = static_cast<std::uint8_t>((x = x * 1664525u + 1013904223u) >> 24);
+      const ssize_t n = ::send(fd.get(), junk.data(), junk.size(), MSG_DONTWAIT | MSG_NOSIGNAL);
+      if (n > 0) garbage_bytes += static_cast<std::uint64_t>(n);
+      if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK) return;  // the sink closed it
+      platform::sleep_until_ns(platform::monotonic_ns() + 1'000'000);
+    }
+  });
+  // A connection storm: 50 a second, each reads a little and hangs up.
+  std::atomic<int> storm_connects{0};
+  std::thread storm([&] {
+    while (pushing.load()) {
+      std::string err;
+      platform::Fd fd = platform::connect_to(sink.endpoint(), &err);
+      if (fd.valid()) {
+        ++storm_connects;
+        std::uint8_t b[16];
+        pollfd p{fd.get(), POLLIN, 0};
+        if (::poll(&p, 1, 5) > 0) (void)::recv(fd.get(), b, sizeof b, MSG_DONTWAIT);
+      }
+      platform::sleep_until_ns(platform::monotonic_ns() + 20'000'000);
+    }
+  });
+
+  // The tracking thread's side: 60 poses a second for 2.5 s.
+  constexpr std::uint32_t kPoses = 150;
+  std::int64_t worst_push_ns = 0;
+  std::uint64_t push_allocations = 0;
+  for (std::uint32_t i = 0; i < kPoses; ++i) {
+    const PoseSample p = pose(i);
+    const test::AllocationCounter allocs;
+    const std::int64_t t0 = platform::monotonic_ns();
+    sink.push_pose(p);
+    worst_push_ns = std::max(worst_push_ns, platform::monotonic_ns() - t0);
+    push_allocations += allocs.count();
+    // The good console reads as the poses come.
+    good.pump([] { return false; }, 1.0 / 60.0);
+  }
+  pushing = false;
+  storm.join();
+  garbage.join();
+
+  // The good console got every pose, in order, nothing rejected.
+  REQUIRE(good.pump([&] {
+    return !good.session.poses().empty() && good.session.poses().back().frame == kPoses - 1;
+  }));
+  CHECK(good.session.poses().size() == kPoses);
+  CHECK(strictly_increasing(good.session.poses()));
+  CHECK(good.session.rejected() == 0);
+  CHECK(good.session.health().has_value());
+  // The stalled console resumes mid-message: the rest of the hello, then
+  // whole messages (the sink never cuts one), the newest pose among them.
+  REQUIRE(stall.session.feed({head.data(), head.size()}).ok());
+  REQUIRE(stall.pump([&] {
+    return !stall.session.poses().empty() && stall.session.poses().back().frame == kPoses - 1;
+  }));
+  CHECK(stall.session.hellos() == 1);
+  CHECK(stall.session.rejected() == 0);
+  CHECK(strictly_increasing(stall.session.poses()));
+
+  CHECK(push_allocations == 0);
+  MESSAGE("worst push_pose " << worst_push_ns * 1e-3 << " us; " << storm_connects.load()
+                             << " storm connections; " << garbage_bytes.load() << " garbage bytes taken");
+  CHECK(worst_push_ns < 5'000'000);  // generous: shared machine
+  CHECK(storm_connects.load() >= 50);
+  CHECK(garbage_bytes.load() > 0);
+  // The storm's and the garbage console's slots are free again: a new console is served.
+  REQUIRE(good.pump([&] { return sink.stats().consoles_connected == 2; }, 2.0));
+  TestConsole late(sink.endpoint());
+  sink.push_pose(pose(kPoses));
+  REQUIRE(late.pump([&] { return !late.session.poses().empty(); }));
+  CHECK(late.session.hellos() == 1);
+  const StreamSinkStats s = sink.stats();
+  CHECK(s.consoles_accepted + s.consoles_refused >= static_cast<std::uint64_t>(storm_connects.load()) + 4);
+  CHECK(s.pose_overruns == 0);
+  sink.stop(0.5);
+  CHECK(sink.stats().sink_thread_allocations == 0);
 }
