@@ -120,4 +120,17 @@ RenderedOrbit render_liver_orbit(int frames) {
   return s;
 }
 
+double reprojection_gap_px(const RenderedOrbit& s, const SE3& T_camera_model, const SE3& truth) {
+  double worst = 0;
+  const int n = s.mesh.vertex_count();
+  const int step = std::max(1, n / 40);
+  for (int i = 0; i < n; i += step) {
+    const Vec3 p = s.mesh.vertex(i);
+    const Vec3 a = T_camera_model * p, b = truth * p;
+    if (a.z() <= 0 || b.z() <= 0) return 1e9;
+    worst = std::max(worst, (s.K.project(a) - s.K.project(b)).norm());
+  }
+  return worst;
+}
+
 }  // namespace st::test

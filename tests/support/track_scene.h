@@ -51,4 +51,10 @@ struct RenderedOrbit {
 };
 RenderedOrbit render_liver_orbit(int frames);
 
+// Largest distance in pixels between the projections (through s.K) of about
+// 40 of the mesh's vertices under a reported pose and under the truth; 1e9
+// when one is behind either camera. A pose more than a few pixels off is a
+// wrong pose.
+double reprojection_gap_px(const RenderedOrbit& s, const SE3& T_camera_model, const SE3& truth);
+
 }  // namespace st::test

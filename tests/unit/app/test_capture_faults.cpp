@@ -76,21 +76,6 @@ class Recorder final : public FrameObserver {
   std::vector<TrackResult> results;
 };
 
-// Largest distance in pixels between the projections of sampled mesh
-// vertices under the reported pose and under the ground truth.
-double reprojection_gap_px(const RenderedOrbit& s, const SE3& reported, const SE3& truth) {
-  double worst = 0;
-  const int n = s.mesh.vertex_count();
-  const int step = std::max(1, n / 40);
-  for (int i = 0; i < n; i += step) {
-    const Vec3 p = s.mesh.vertex(i);
-    const Vec3 a = reported * p, b = truth * p;
-    if (a.z() <= 0 || b.z() <= 0) return 1e9;
-    worst = std::max(worst, (s.K.project(a) - s.K.project(b)).norm());
-  }
-  return worst;
-}
-
 }  // namespace
 
 TEST_CASE("capture faults: stall, burst, duplicate, dropped and backward frames and a frame of another "
