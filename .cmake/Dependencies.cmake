@@ -31,6 +31,7 @@ scopetrack_find_opencv_module(features2d REQUIRED)
 # Host tools and tests only (baselines, comparisons): imgproc, calib3d.
 scopetrack_find_opencv_module(imgproc REQUIRED)
 scopetrack_find_opencv_module(calib3d)
+scopetrack_find_opencv_module(imgcodecs)  # scopetrack-soak's plot
 
 find_program(FLATC_EXECUTABLE flatc REQUIRED)
 find_program(FFMPEG_EXECUTABLE ffmpeg)

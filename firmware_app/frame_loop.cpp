@@ -29,6 +29,8 @@ FrameRow record_frame(int frame, double timestamp_s, const TrackResult& r, doubl
   row.record.state = frame_state(r.state);
   row.record.inliers = r.inliers;
   row.record.latency_ms = latency_ms;
+  row.record.map_points = r.map_points;
+  row.record.keyframes = r.keyframes;
   row.pose_valid = r.pose_valid && r.T_camera_model.all_finite();
   if (row.pose_valid) row.T_model_camera = r.T_camera_model.inverse();
   ++stats->frames;

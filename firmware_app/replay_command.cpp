@@ -232,6 +232,7 @@ int run_replay(Args argv) {
                        {"fast_reference_contrast", tc.fast_reference_contrast},
                        {"refresh_descriptors", tc.refresh_descriptors ? 1.0 : 0.0},
                        {"check_calibration", tc.check_calibration ? 1.0 : 0.0},
+                       {"max_map_points", tc.max_map_points}, {"max_keyframes", tc.max_keyframes},
                        {"width", c.width}, {"height", c.height}};
   auto stats = run_replay(seq.value(), *processor, opt);
   if (!stats) {

@@ -13,6 +13,7 @@ packages=(
   libopencv-features2d-dev               # core: cv::KeyPoint types; tests/bench: cv::ORB baseline
   libopencv-imgproc-dev                  # tools/tests: baselines (fillConvexPoly), overlay drawing
   libopencv-calib3d-dev                  # tests only: projectPoints comparison
+  libopencv-imgcodecs-dev                # tools: scopetrack-soak's plot (PNG)
   libceres-dev                           # core: tiny_solver shape + window BA
   libflatbuffers-dev flatbuffers-compiler  # hal: console stream; tests: flatc --json decode
   libcamera-dev                          # hal: live capture

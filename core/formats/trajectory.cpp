@@ -115,11 +115,17 @@ const char* to_string(FrameState s) {
   return "lost";
 }
 
-std::string frames_csv_header() { return "frame,timestamp,state,inliers,latency_ms\n"; }
+std::string frames_csv_header() { return "frame,timestamp,state,inliers,latency_ms,map_points,keyframes\n"; }
+
+bool is_frames_csv_header(std::string_view line) {
+  constexpr std::string_view kBase = "frame,timestamp,state,inliers,latency_ms";
+  return line.substr(0, kBase.size()) == kBase && (line.size() == kBase.size() || line[kBase.size()] == ',');
+}
 
 std::string format_frames_csv_row(const FrameRecord& r) {
   return std::to_string(r.frame) + ',' + format_number(r.timestamp_s) + ',' + to_string(r.state) +
-         ',' + std::to_string(r.inliers) + ',' + format_number(r.latency_ms) + '\n';
+         ',' + std::to_string(r.inliers) + ',' + format_number(r.latency_ms) + ',' +
+         std::to_string(r.map_points) + ',' + std::to_string(r.keyframes) + '\n';
 }
 
 namespace {

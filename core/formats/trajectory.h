@@ -48,10 +48,16 @@ struct FrameRecord {
   FrameState state = FrameState::kLost;
   int inliers = 0;
   double latency_ms = 0.0;
+  int map_points = 0;  // the map's pools after the frame: points and keyframes alive
+  int keyframes = 0;
 };
-// "frame,timestamp,state,inliers,latency_ms\n"
+// "frame,timestamp,state,inliers,latency_ms,map_points,keyframes\n"
 std::string frames_csv_header();
-// One row with '\n', e.g. "12,0.48,tracking,311,6.25\n".
+// True for a frames.csv header line (without its '\n'): the first five
+// columns as above, then any columns a later build appends (readers take
+// what they know, so files of earlier and later builds both read).
+bool is_frames_csv_header(std::string_view line);
+// One row with '\n', e.g. "12,0.48,tracking,311,6.25,2403,14\n".
 std::string format_frames_csv_row(const FrameRecord& r);
 
 struct RunSummary {

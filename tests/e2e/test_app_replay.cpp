@@ -127,7 +127,7 @@ TEST_CASE("app_replay: 200 frames, every row written, zero allocations on the tr
 
   const auto csv = lines_of(opt.out_dir / "frames.csv");
   REQUIRE(csv.size() == 201);
-  CHECK(csv[0] == "frame,timestamp,state,inliers,latency_ms");
+  CHECK(csv[0] == "frame,timestamp,state,inliers,latency_ms,map_points,keyframes");
   CHECK(csv[1].rfind("0,0,initialised,100,", 0) == 0);
   CHECK(csv[10].rfind("9,0.36,lost,109,", 0) == 0);
   CHECK(lines_of(opt.out_dir / "trajectory.txt").size() == 180);

@@ -133,4 +133,21 @@ double reprojection_gap_px(const RenderedOrbit& s, const SE3& T_camera_model, co
   return worst;
 }
 
+const RenderedOrbit& liver_orbit40() {
+  static const RenderedOrbit r = render_liver_orbit(40);
+  return r;
+}
+
+TrackerConfig small_tracker_config(const Pinhole& K) {
+  TrackerConfig c;
+  c.width = K.width;
+  c.height = K.height;
+  c.features.n_features = 1000;
+  c.max_map_points = 3000;
+  c.max_keyframes = 12;
+  c.keyframe_angle_deg = 3.0;
+  c.ba_max_observations = 12000;
+  return c;
+}
+
 }  // namespace st::test

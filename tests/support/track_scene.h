@@ -12,6 +12,7 @@
 #include "core/image/image.h"
 #include "core/mesh/mesh.h"
 #include "core/raster/rasterizer.h"
+#include "core/tracking/tracker.h"
 #include "core/geometry/se3.h"
 
 namespace st::test {
@@ -50,6 +51,13 @@ struct RenderedOrbit {
   std::vector<Image<std::uint8_t>> frames;
 };
 RenderedOrbit render_liver_orbit(int frames);
+// render_liver_orbit(40), rendered once per test binary run.
+const RenderedOrbit& liver_orbit40();
+
+// The tracker's settings for the 640x360 test frames: 1000 features, a
+// small map (3000 points, 12 keyframes), a keyframe every 3 degrees (so
+// that bundle adjustment has work).
+TrackerConfig small_tracker_config(const Pinhole& K);
 
 // Largest distance in pixels between the projections (through s.K) of about
 // 40 of the mesh's vertices under a reported pose and under the truth; 1e9

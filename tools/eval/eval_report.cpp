@@ -20,7 +20,7 @@ Result<std::string> read_text(const std::filesystem::path& p) { return read_file
 Result<int> count_csv_rows(const std::string& text) {
   std::istringstream in(text);
   std::string line;
-  if (!std::getline(in, line) || line + "\n" != frames_csv_header())
+  if (!std::getline(in, line) || !is_frames_csv_header(line))
     return make_error("frames.csv: the first line is not the header '" +
                       frames_csv_header().substr(0, frames_csv_header().size() - 1) + "'");
   int rows = 0;

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets in build-fuzz/ and runs each for SECONDS
-# (default 60), one at a time, from the seeds in tools/fuzz/seeds.
+# (default 60), one at a time, from the seeds in tools/fuzz/seeds, and
+# prints each one's executions, speed, peak memory and coverage.
 #   tools/fuzz/run.sh [SECONDS] [target...]     targets: y4m ply stl sequence_yaml tum markers register_pairs console_stream
 # Crashes land in build-fuzz/fuzz-out/<target>/crash-*; reproduce with
 #   build-fuzz/bin/fuzz_<target> build-fuzz/fuzz-out/<target>/crash-...
@@ -21,5 +22,8 @@ for t in "${targets[@]}"; do
   ASAN_OPTIONS=detect_leaks=1 build-fuzz/bin/fuzz_$t -max_total_time="$seconds" -max_len=65536 \
     -rss_limit_mb=2048 -timeout=10 -artifact_prefix="$out/" -print_final_stats=1 "$out/corpus" 2>"$out/log.txt" || {
     echo "fuzz_$t FAILED: see $out/log.txt"; tail -30 "$out/log.txt"; exit 1; }
-  grep -E "stat::number_of_executed_units|stat::peak_rss_mb" "$out/log.txt" | sed "s/^/  /"
+  # Executions, speed and memory from the final stats; coverage (edges,
+  # features, corpus) from libFuzzer's last status line.
+  grep -E "stat::number_of_executed_units|stat::average_exec_per_sec|stat::peak_rss_mb" "$out/log.txt" | sed "s/^/  /"
+  grep -E "^#[0-9]+ +DONE" "$out/log.txt" | tail -1 | sed -E "s/.*(cov: [0-9]+ ft: [0-9]+ corp: [0-9]+\/[^ ]+).*/  coverage: \1/"
 done

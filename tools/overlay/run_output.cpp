@@ -52,10 +52,12 @@ Result<std::vector<std::optional<SE3>>> poses_by_frame(const std::vector<TimedPo
 
 Result<std::vector<std::optional<FrameState>>> parse_frame_states(std::string_view csv) {
   std::vector<std::optional<FrameState>> out;
-  const std::string header = frames_csv_header();
-  if (csv.substr(0, header.size()) != header)
+  const std::size_t header_end = std::min(csv.find('\n'), csv.size());
+  if (!is_frames_csv_header(csv.substr(0, header_end))) {
+    const std::string header = frames_csv_header();
     return make_error("frames.csv: the first line is not '" + header.substr(0, header.size() - 1) + "'");
-  std::size_t pos = header.size();
+  }
+  std::size_t pos = header_end + 1;
   for (int line = 2; pos < csv.size(); ++line) {
     std::size_t end = csv.find('\n', pos);
     if (end == std::string_view::npos) end = csv.size();

@@ -113,12 +113,7 @@ TEST_CASE("capture faults: stall, burst, duplicate, dropped and backward frames 
     }
   }
 
-  TrackerConfig cfg;
-  cfg.width = s.K.width;
-  cfg.height = s.K.height;
-  cfg.features.n_features = 1000;
-  cfg.max_map_points = 3000;
-  cfg.max_keyframes = 12;
+  const TrackerConfig cfg = small_tracker_config(s.K);
   app::TrackerProcessor processor;
   REQUIRE(processor.configure(cfg, s.mesh, CameraModel(s.K, Distortion{}), s.T_camera_model[0]).ok());
   FaultySource source(s, script);

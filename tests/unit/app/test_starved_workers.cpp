@@ -24,11 +24,6 @@ using namespace st::test;
 
 namespace {
 
-const RenderedOrbit& orbit40() {
-  static const RenderedOrbit r = render_liver_orbit(40);
-  return r;
-}
-
 // Takes one job and holds it until release_at(): the mapping thread
 // starved. Then solves it (on the test thread, between frames) and hands
 // it back, far later than any window job would come.
@@ -76,15 +71,8 @@ TEST_CASE("starved workers: a BA job held for 150 frames, then applied late: tra
           "right, nothing waits or allocates" *
           doctest::timeout(120)) {
   REQUIRE(platform::allocation_counting_enabled());
-  const RenderedOrbit& s = orbit40();
-  TrackerConfig cfg;
-  cfg.width = s.K.width;
-  cfg.height = s.K.height;
-  cfg.features.n_features = 1000;
-  cfg.max_map_points = 3000;
-  cfg.max_keyframes = 12;
-  cfg.keyframe_angle_deg = 3.0;  // keyframes every few frames: jobs are wanted all along
-  cfg.ba_max_observations = 12000;
+  const RenderedOrbit& s = liver_orbit40();
+  const TrackerConfig cfg = small_tracker_config(s.K);  // keyframes every few frames: jobs wanted all along
   Tracker t;
   REQUIRE(t.configure(cfg, s.mesh, CameraModel(s.K, Distortion{}), s.T_camera_model[0]).ok());
   StarvedChannel channel;
@@ -132,7 +120,7 @@ TEST_CASE("starved workers: a texture thread far slower than the frames: skipped
           "never a wait or an allocation, taken again when it catches up" *
           doctest::timeout(60)) {
   REQUIRE(platform::allocation_counting_enabled());
-  const RenderedOrbit& s = orbit40();
+  const RenderedOrbit& s = liver_orbit40();
   app::TextureWorker worker;
   TextureConfig tc;
   tc.width = s.K.width;

@@ -79,10 +79,14 @@ TEST_CASE("trajectory: markers round trip and bad input") {
 }
 
 TEST_CASE("trajectory: frames.csv and summary.json formatting") {
-  CHECK(frames_csv_header() == "frame,timestamp,state,inliers,latency_ms\n");
-  CHECK(format_frames_csv_row({12, 0.48, FrameState::kTracking, 311, 6.25}) ==
-        "12,0.48,tracking,311,6.25\n");
-  CHECK(format_frames_csv_row({0, 0, FrameState::kInitialised, 0, 1.5}) == "0,0,initialised,0,1.5\n");
+  CHECK(frames_csv_header() == "frame,timestamp,state,inliers,latency_ms,map_points,keyframes\n");
+  CHECK(is_frames_csv_header("frame,timestamp,state,inliers,latency_ms"));  // an earlier build's
+  CHECK(is_frames_csv_header("frame,timestamp,state,inliers,latency_ms,map_points,keyframes,later"));
+  CHECK_FALSE(is_frames_csv_header("frame,timestamp,state,inliers,latency"));
+  CHECK_FALSE(is_frames_csv_header("frame,timestamp,state,inliers,latency_msx"));
+  CHECK(format_frames_csv_row({12, 0.48, FrameState::kTracking, 311, 6.25, 2403, 14}) ==
+        "12,0.48,tracking,311,6.25,2403,14\n");
+  CHECK(format_frames_csv_row({0, 0, FrameState::kInitialised, 0, 1.5}) == "0,0,initialised,0,1.5,0,0\n");
   CHECK(std::string(to_string(FrameState::kRelocalised)) == "relocalised");
   RunSummary s;
   s.frames = 10;

@@ -24,23 +24,6 @@ using namespace st::test;
 
 namespace {
 
-const RenderedOrbit& orbit40() {
-  static const RenderedOrbit r = render_liver_orbit(40);
-  return r;
-}
-
-TrackerConfig small_config(const Pinhole& K) {
-  TrackerConfig c;
-  c.width = K.width;
-  c.height = K.height;
-  c.features.n_features = 1000;
-  c.max_map_points = 3000;
-  c.max_keyframes = 12;
-  c.keyframe_angle_deg = 3.0;  // keyframes every few frames: BA has work
-  c.ba_max_observations = 12000;
-  return c;
-}
-
 // Solves each job as it is submitted, on the calling thread (tests only).
 class InlineChannel final : public BaChannel {
  public:
@@ -75,7 +58,7 @@ struct RunResult {
 };
 
 RunResult run_orbit(const TrackerConfig& cfg, BaChannel* channel) {
-  const RenderedOrbit& s = orbit40();
+  const RenderedOrbit& s = liver_orbit40();
   Tracker t;
   REQUIRE(t.configure(cfg, s.mesh, CameraModel(s.K, Distortion{}), s.T_camera_model[0]).ok());
   t.set_ba_channel(channel);
@@ -109,9 +92,9 @@ RunResult run_orbit(const TrackerConfig& cfg, BaChannel* channel) {
 
 TEST_CASE("ba tracker: neither the tracking nor the mapping thread allocates while BA runs") {
   REQUIRE(platform::allocation_counting_enabled());
-  const RenderedOrbit& s = orbit40();
+  const RenderedOrbit& s = liver_orbit40();
   Image<std::uint8_t> black(s.K.width, s.K.height);
-  const TrackerConfig cfg = small_config(s.K);
+  const TrackerConfig cfg = small_tracker_config(s.K);
   Tracker t;
   REQUIRE(t.configure(cfg, s.mesh, CameraModel(s.K, Distortion{}), s.T_camera_model[0]).ok());
   app::MappingWorker worker;
@@ -155,8 +138,8 @@ TEST_CASE("ba tracker: neither the tracking nor the mapping thread allocates whi
 }
 
 TEST_CASE("ba tracker: BA keeps tracking accurate and map points on the mesh (synchronous channel)") {
-  const RenderedOrbit& s = orbit40();
-  TrackerConfig cfg = small_config(s.K);
+  const RenderedOrbit& s = liver_orbit40();
+  TrackerConfig cfg = small_tracker_config(s.K);
   const RunResult none = run_orbit(cfg, nullptr);
   InlineChannel shape;
   REQUIRE(shape.configure(cfg, s.mesh, s.K).ok());
@@ -182,8 +165,8 @@ TEST_CASE("ba tracker: BA keeps tracking accurate and map points on the mesh (sy
 }
 
 TEST_CASE("ba tracker: use_ba false hands out no job, bad BA settings are refused") {
-  const RenderedOrbit& s = orbit40();
-  TrackerConfig cfg = small_config(s.K);
+  const RenderedOrbit& s = liver_orbit40();
+  TrackerConfig cfg = small_tracker_config(s.K);
   cfg.use_ba = false;
   InlineChannel channel;
   REQUIRE(channel.configure(cfg, s.mesh, s.K).ok());
@@ -193,7 +176,7 @@ TEST_CASE("ba tracker: use_ba false hands out no job, bad BA settings are refuse
   Tracker t;
   for (const auto& bad : {+[](TrackerConfig* c) { c->ba.w_shape = -1; }, +[](TrackerConfig* c) { c->ba_window_keyframes = 1; },
                           +[](TrackerConfig* c) { c->ba.max_time_s = 0; }, +[](TrackerConfig* c) { c->ba_max_observations = 0; }}) {
-    TrackerConfig c = small_config(s.K);
+    TrackerConfig c = small_tracker_config(s.K);
     bad(&c);
     CHECK_FALSE(t.configure(c, s.mesh, CameraModel(s.K, Distortion{}), s.T_camera_model[0]).ok());
   }

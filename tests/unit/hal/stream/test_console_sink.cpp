@@ -80,6 +80,20 @@ PoseSample pose(std::uint32_t frame) {
   return p;
 }
 
+// The tracking thread's side of the sink: push_pose() timed and its
+// allocations counted.
+struct PushMeter {
+  std::int64_t worst_ns = 0;
+  std::uint64_t allocations = 0;
+  void push(StreamSink& sink, const PoseSample& p) {
+    const test::AllocationCounter allocs;
+    const std::int64_t t0 = platform::monotonic_ns();
+    sink.push_pose(p);
+    worst_ns = std::max(worst_ns, platform::monotonic_ns() - t0);
+    allocations += allocs.count();
+  }
+};
+
 bool strictly_increasing(const std::vector<PoseSample>& poses) {
   for (std::size_t i = 1; i < poses.size(); ++i)
     if (poses[i].frame <= poses[i - 1].frame) return false;
@@ -145,21 +159,15 @@ TEST_CASE(
   REQUIRE(sink.wait_for_consoles(2, 5));
   const double rss0 = platform::current_rss_mb();
   constexpr std::uint32_t kPoses = 40000;  // ~5 MB of messages: far beyond every buffer
-  std::int64_t worst_push_ns = 0;
-  std::uint64_t push_allocations = 0;
+  PushMeter meter;
   for (std::uint32_t i = 0; i < kPoses; ++i) {
-    const PoseSample p = pose(i);
-    const test::AllocationCounter allocs;
-    const std::int64_t t0 = platform::monotonic_ns();
-    sink.push_pose(p);
-    worst_push_ns = std::max(worst_push_ns, platform::monotonic_ns() - t0);
-    push_allocations += allocs.count();
+    meter.push(sink, pose(i));
     if (i % 200 == 199)
       platform::sleep_until_ns(platform::monotonic_ns() + 200'000);  // ~1000 frames/s
   }
-  CHECK(push_allocations == 0);  // the tracking thread's side allocates nothing
-  MESSAGE("worst push_pose: " << worst_push_ns * 1e-3 << " us");
-  CHECK(worst_push_ns <
+  CHECK(meter.allocations == 0);  // the tracking thread's side allocates nothing
+  MESSAGE("worst push_pose: " << meter.worst_ns * 1e-3 << " us");
+  CHECK(meter.worst_ns <
         5'000'000);  // a lock or a send() would show as ms (generous: shared machine)
   // Measured before the test's reader keeps anything: the sink's buffers
   // are fixed, nothing grows with the backlog.
@@ -294,15 +302,9 @@ TEST_CASE(
 
   // The tracking thread's side: 60 poses a second for 2.5 s.
   constexpr std::uint32_t kPoses = 150;
-  std::int64_t worst_push_ns = 0;
-  std::uint64_t push_allocations = 0;
+  PushMeter meter;
   for (std::uint32_t i = 0; i < kPoses; ++i) {
-    const PoseSample p = pose(i);
-    const test::AllocationCounter allocs;
-    const std::int64_t t0 = platform::monotonic_ns();
-    sink.push_pose(p);
-    worst_push_ns = std::max(worst_push_ns, platform::monotonic_ns() - t0);
-    push_allocations += allocs.count();
+    meter.push(sink, pose(i));
     // The good console reads as the poses come.
     good.pump([] { return false; }, 1.0 / 60.0);
   }
@@ -328,10 +330,10 @@ TEST_CASE(
   CHECK(stall.session.rejected() == 0);
   CHECK(strictly_increasing(stall.session.poses()));
 
-  CHECK(push_allocations == 0);
-  MESSAGE("worst push_pose " << worst_push_ns * 1e-3 << " us; " << storm_connects.load()
+  CHECK(meter.allocations == 0);
+  MESSAGE("worst push_pose " << meter.worst_ns * 1e-3 << " us; " << storm_connects.load()
                              << " storm connections; " << garbage_bytes.load() << " garbage bytes taken");
-  CHECK(worst_push_ns < 5'000'000);  // generous: shared machine
+  CHECK(meter.worst_ns < 5'000'000);  // generous: shared machine
   CHECK(storm_connects.load() >= 50);
   CHECK(garbage_bytes.load() > 0);
   // The storm's and the garbage console's slots are free again: a new console is served.

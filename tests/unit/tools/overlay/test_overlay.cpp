@@ -113,7 +113,7 @@ void write_run(const std::filesystem::path& out, const std::vector<TimedPose>& p
   REQUIRE(write_file(out / "trajectory.txt", format_tum(poses)).ok());
   std::string csv = frames_csv_header();
   for (std::size_t i = 0; i < states.size(); ++i)
-    csv += std::to_string(i) + "," + format_number(static_cast<double>(i) / 30.0) + "," + states[i] + ",100,5\n";
+    csv += std::to_string(i) + "," + format_number(static_cast<double>(i) / 30.0) + "," + states[i] + ",100,5,900,6\n";
   REQUIRE(write_file(out / "frames.csv", csv).ok());
 }
 
