@@ -1,6 +1,9 @@
 #include "core/formats/sequence.h"
 
+#include <algorithm>
 #include <cmath>
+#include <string_view>
+#include <utility>
 
 #include <opencv2/core.hpp>
 
@@ -100,6 +103,21 @@ Status read_scalars(const cv::FileStorage& fs, bool need_files, SequenceConfig* 
   c->markers = read_string(fs, "markers");
   if (need_files && (c->video.empty() || c->mesh.empty()))
     return make_error("sequence.yaml: 'video' and 'mesh' file names are required");
+  // A name that cv::FileStorage would take for structure when the file is
+  // written back ('{' '}' '[' ']' first: fuzz_sequence_yaml found "}ideo.y4m"
+  // throwing in format_sequence_yaml), or that holds control characters,
+  // is no file name a sequence needs.
+  for (const auto& [key, name] : {std::pair<const char*, const std::string*>{"video", &c->video},
+                                  {"mesh", &c->mesh}, {"groundtruth", &c->groundtruth},
+                                  {"markers", &c->markers}}) {
+    const bool structural = !name->empty() && std::string_view("{}[]").find(name->front()) != std::string_view::npos;
+    const bool control = std::any_of(name->begin(), name->end(), [](char ch) {
+      return static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f;
+    });
+    if (structural || control)
+      return make_error(std::string("sequence.yaml: '") + key + "' is not a usable file name (it starts with one of {}[] "
+                        "or holds control characters)");
+  }
   return Status::Ok();
 }
 

@@ -128,6 +128,12 @@ TEST_CASE("sequence: bad sequence.yaml gives clear errors, never throws") {
       // ~1e14 times along one ray (a hang); now refused at once.
       {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 0, 320, 0, 60000000000000., 240, 0, 0, 1")), "field of view"},
       {with_replaced("camera_matrix", "camera_matrix: " + matrix(3, 3, "640, 0, 320, 0, 3000, 240, 0, 0, 1")), "not one camera"},
+      // Found by fuzz_sequence_yaml: a name cv::FileStorage writes back as
+      // structure made format_sequence_yaml throw (a crash in
+      // scopetrack-register --write); now refused when read.
+      {with_replaced("video", "video: \"}ideo.y4m\""), "not a usable file name"},
+      {with_replaced("mesh", "mesh: \"[organ.ply\""), "not a usable file name"},
+      {with_replaced("video", "video: \"vi\\tdeo.y4m\""), "not a usable file name"},
   };
   for (const Case& c : cases) {
     Result<SequenceConfig> r = make_error("not run");
