@@ -56,8 +56,8 @@ void FrameLoop::run() {
   int prev_index = -1;
   double prev_timestamp_s = 0;
   for (;;) {
-    if (stop_signal != nullptr && stop_signal->load(std::memory_order_relaxed) != 0) {
-      stats.stop_signal = stop_signal->load(std::memory_order_relaxed);
+    if (const int sig = stop_signal ? stop_signal->load(std::memory_order_relaxed) : 0; sig != 0) {
+      stats.stop_signal = sig;
       break;
     }
     SourceFrame in;

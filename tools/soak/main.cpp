@@ -7,6 +7,7 @@
 // passed, 1 a check failed or the soak could not run, 2 bad command line.
 #include <unistd.h>
 
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -29,6 +30,9 @@ int usage() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // scopetrack gone mid-run: the capture's write fails (EPIPE) and the soak
+  // reports it, instead of SIGPIPE ending the soak.
+  std::signal(SIGPIPE, SIG_IGN);
   st::soak::SoakOptions o;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];

@@ -155,11 +155,18 @@ Status write_joined_sequence(const SoakOptions& o, const std::vector<Segment>& s
 // The capture: the first segment's stream header, then the frames in
 // order, into the FIFO (blocks while scopetrack does not read: a paced
 // tower would drop instead, but a soak wants every frame).
+// Gives up when stop is set before scopetrack opens the FIFO (it failed
+// before reading), instead of waiting in open() for ever.
 void feed(const SoakOptions& o, const std::vector<Segment>& segs, const std::filesystem::path& fifo,
-          std::atomic<bool>* failed) {
-  const int out = ::open(fifo.c_str(), O_WRONLY);
-  if (out < 0) {
+          const std::atomic<bool>& stop, std::atomic<bool>* failed) {
+  int out = -1;
+  while (out < 0 && !stop.load()) {
+    out = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);  // ENXIO while no reader
+    if (out < 0) platform::sleep_until_ns(platform::monotonic_ns() + 20'000'000);
+  }
+  if (out < 0 || ::fcntl(out, F_SETFL, 0) != 0) {  // then blocking writes
     failed->store(true);
+    if (out >= 0) ::close(out);
     return;
   }
   std::vector<int> in;
@@ -306,6 +313,9 @@ Result<SoakResult> run_soak(const SoakOptions& o) {
   // scopetrack, with the console link.
   const std::string app = (o.bin_dir / "scopetrack").string(), log = (o.out_dir / "scopetrack.log").string();
   const std::string stream = "unix:" + sock.string();
+  platform::Endpoint ep;
+  std::string err;
+  if (!platform::parse_endpoint(stream, &ep, &err)) return make_error("--out " + o.out_dir.string() + ": " + err);
   std::vector<std::string> args = {app, "--sequence", seq_dir.string(), "--out", run_dir.string(), "--stream", stream};
   if (o.ba_lag > 0) {
     args.push_back("--ba-lag");
@@ -324,10 +334,7 @@ Result<SoakResult> run_soak(const SoakOptions& o) {
   if (spawned != 0) return make_error("cannot start " + app + ": " + std::strerror(spawned));
 
   std::atomic<bool> feed_failed{false}, stop_console{false};
-  std::thread feeder([&] { feed(o, segs, seq_dir / "video.y4m", &feed_failed); });
-  platform::Endpoint ep;
-  std::string err;
-  if (!platform::parse_endpoint(stream, &ep, &err)) return make_error(err);
+  std::thread feeder([&] { feed(o, segs, seq_dir / "video.y4m", stop_console, &feed_failed); });
   ConsoleStats console;
   std::thread console_thread([&] { run_console(o, ep, mesh_seq->mesh, stop_console, &console); });
 
