@@ -1,6 +1,8 @@
 // scopetrack --camera / --list-cameras: the tracker on a live libcamera
 // stream (hal/capture/libcamera_capture.h). NOT RUN ON HARDWARE: the development
-// machine has no camera; the no-camera paths are tested.
+// machine has no camera; the no-camera paths are tested, and run_live (all
+// of the run after the camera is open) is tested with a scripted source in
+// the camera's place (tests/unit/app/test_live_stop.cpp).
 //
 // Threads: the calling (owner) thread blocks SIGINT/SIGTERM before any
 // thread exists (libcamera's and ours inherit the mask), opens everything,
@@ -104,28 +106,29 @@ bool open_inputs(const CameraArgs& a, SequenceConfig* cal, Mesh* mesh, Libcamera
   return true;
 }
 
-// Owner thread: until SIGINT/SIGTERM or the tracking thread ends by itself.
-void wait_for_stop(const sigset_t& signals, const LoopStatus& status, bool print) {
+// Owner thread: until SIGINT/SIGTERM (the signal) or the tracking thread
+// ends by itself (0).
+int wait_for_stop(const sigset_t& signals, const LoopStatus& status, bool print) {
   const timespec tick{1, 0};
   while (!status.done.load()) {
     const int sig = sigtimedwait(&signals, nullptr, &tick);
-    if (sig == SIGINT || sig == SIGTERM) return;
+    if (sig == SIGINT || sig == SIGTERM) return sig;
     if (print)
       std::fprintf(stderr, "\r%d frames  %d with a pose  %d lost  state %s%s   ", status.frames.load(),
                    status.tracked.load(), status.lost.load(),
                    to_string(static_cast<FrameState>(status.last_state.load())),
                    status.calibration_suspect.load() ? "  CALIBRATION SUSPECT" : "");
   }
+  return 0;
 }
 
 // Owner thread, after the tracking thread ended: stats, the summary line,
-// summary.json with --out. The exit status.
-int finish_run(const CameraArgs& args, const SequenceConfig& cal, const LibcameraCapture& capture,
-               const TrackerProcessor& processor, RunWriter* writer, FrameLoop* loop) {
+// summary.json with an output folder. The exit status.
+int finish_run(const LiveRun& run, const TrackerProcessor& processor, RunWriter* writer, FrameLoop* loop) {
   RunStats& stats = loop->stats;
   loop->fill_timing();
-  if (loop->source_error) stats.error = capture.error();
-  const CaptureCounters counters = capture.counters();
+  if (loop->source_error) stats.error = run.source->error();
+  const CaptureCounters counters = run.counters ? run.counters() : CaptureCounters{};
   std::fprintf(stderr, "\n%d frames: %d with a pose, %d lost  %.1f fps  latency mean %.2f ms p99 %.2f ms"
                "  skipped %llu  failed %llu  tracking-thread allocations %lld\n",
                stats.frames, stats.tracked, stats.lost, stats.fps, stats.mean_latency_ms, stats.p99_latency_ms,
@@ -134,16 +137,20 @@ int finish_run(const CameraArgs& args, const SequenceConfig& cal, const Libcamer
   if (writer) {
     if (Status s = writer->finish(); !s && stats.error.empty()) stats.error = s.message();
     std::vector<std::pair<std::string, double>> extra = {
-        {"width", cal.width}, {"height", cal.height},
+        {"width", run.calibration.width}, {"height", run.calibration.height},
         {"camera_skipped_frames", static_cast<double>(counters.skipped)},
         {"camera_failed_frames", static_cast<double>(counters.failed)}};
     processor.append_summary(&extra);
-    if (Status s = write_file(std::filesystem::path(args.out) / "summary.json", format_run_summary(stats, true, extra)); !s)
+    if (Status s = write_file(std::filesystem::path(run.out_dir) / "summary.json",
+                              format_run_summary(stats, true, extra));
+        !s) {
       std::fprintf(stderr, "scopetrack: %s\n", s.message().c_str());
+      if (stats.error.empty()) stats.error = s.message();
+    }
   }
   if (!stats.error.empty()) std::fprintf(stderr, "scopetrack: capture ended: %s\n", stats.error.c_str());
   if (const CalibrationCheck c = processor.calibration_check(); c.suspect)
-    std::fprintf(stderr, "scopetrack: %s\n", describe_calibration(c, args.calibration).c_str());
+    std::fprintf(stderr, "scopetrack: %s\n", describe_calibration(c, run.calibration_path).c_str());
   return stats.error.empty() ? 0 : 1;
 }
 
@@ -191,18 +198,36 @@ int run_camera(Args argv) {
   Mesh mesh;
   auto capture = std::make_unique<LibcameraCapture>();
   if (!open_inputs(args, &cal, &mesh, capture.get())) return 1;
+  LiveRun run;
+  run.config = tc;
+  run.calibration = cal;
+  run.mesh = &mesh;
+  run.calibration_path = args.calibration;
+  run.out_dir = args.out;
+  run.source_label = "camera '" + args.camera + "' (" + to_string(capture->pixel_format()) + " " +
+                     std::to_string(cal.width) + "x" + std::to_string(cal.height) + ")";
+  run.source = capture.get();
+  const LibcameraCapture* camera = capture.get();
+  run.counters = [camera] { return camera->counters(); };
+  return run_live(run, signals);
+}
+
+int run_live(const LiveRun& run, const sigset_t& stop_signals) {
+  const SequenceConfig& cal = run.calibration;
+  TrackerConfig tc = run.config;
   tc.width = cal.width;
   tc.height = cal.height;
-  tc.now_ns = &platform::monotonic_ns;
+  if (!tc.now_ns) tc.now_ns = &platform::monotonic_ns;
   auto processor = std::make_unique<TrackerProcessor>();
-  if (Status s = processor->configure(tc, mesh, CameraModel(cal.K, cal.distortion), cal.T_camera_model_init); !s) {
+  if (Status s = processor->configure(tc, *run.mesh, CameraModel(cal.K, cal.distortion), cal.T_camera_model_init);
+      !s) {
     std::fprintf(stderr, "scopetrack: cannot configure the tracker: %s\n", s.message().c_str());
     return 1;
   }
   std::unique_ptr<RunWriter> writer;
-  if (!args.out.empty()) {
+  if (!run.out_dir.empty()) {
     writer = std::make_unique<RunWriter>();
-    if (Status s = writer->open(args.out); !s) {
+    if (Status s = writer->open(run.out_dir); !s) {
       std::fprintf(stderr, "scopetrack: %s\n", s.message().c_str());
       return 1;
     }
@@ -210,21 +235,22 @@ int run_camera(Args argv) {
   }
   auto status = std::make_unique<LoopStatus>();
   auto loop = std::make_unique<FrameLoop>();
-  loop->source = capture.get();
+  loop->source = run.source;
   loop->processor = processor.get();
   loop->writer = writer.get();
   loop->status = status.get();
-  if (Status s = capture->start(); !s) {
+  if (Status s = run.source->start(); !s) {
     std::fprintf(stderr, "scopetrack: %s\n", s.message().c_str());
+    if (writer) (void)writer->finish();
     return 1;
   }
-  std::fprintf(stderr, "scopetrack: tracking camera '%s' (%s %dx%d); Ctrl-C stops\n", args.camera.c_str(),
-               to_string(capture->pixel_format()), cal.width, cal.height);
+  std::fprintf(stderr, "scopetrack: tracking %s; Ctrl-C stops\n", run.source_label.c_str());
   std::thread tracking([&loop] { loop->run(); });
-  wait_for_stop(signals, *status, true);
-  capture->stop();
+  const int sig = wait_for_stop(stop_signals, *status, run.print_status);
+  run.source->stop();
   tracking.join();
-  return finish_run(args, cal, *capture, *processor, writer.get(), loop.get());
+  loop->stats.stop_signal = sig;
+  return finish_run(run, *processor, writer.get(), loop.get());
 }
 
 }  // namespace st::app
