@@ -19,6 +19,7 @@ Agreement judge_agreement(const OutlineShadingEvidence& e, const AgreementLimits
   if (!(e.outline_sigma_px <= limits.max_outline_sigma_px)) return Agreement::kOutlineLoose;
   if (!e.shading_measured) return Agreement::kNoShading;
   if (!(e.disagreement_px <= limits.max_disagreement_px)) return Agreement::kDisagree;
+  if (limits.max_joint_sigma_px > 0 && !(e.joint_sigma_px <= limits.max_joint_sigma_px)) return Agreement::kOutlineLoose;
   return Agreement::kAgree;
 }
 

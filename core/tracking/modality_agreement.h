@@ -2,8 +2,9 @@
 // outline (core/contour/region_modality.h) and its shading (direct
 // alignment against the last reported frame, core/motion/direct_alignment.h)
 // are independent measurements of the pose; a pose is reported only when
-// both measured one, the outline alone fixes the organ's place in view,
-// and the two put the organ at the same place. A pose that one modality
+// both measured one, the outline alone places the organ in view, the two
+// put the organ at the same place, and (optionally) together they fix it
+// (the shading fixing what a short outline leaves open). A pose that one modality
 // alone supports stays lost. Pure function of the evidence; tracking
 // thread.
 #pragma once
@@ -21,6 +22,9 @@ struct OutlineShadingEvidence {
   // straight (cut by the field stop, the organ filling the view).
   double outline_sigma_px = std::numeric_limits<double>::infinity();
   bool shading_measured = false;  // the direct alignment converged and passed its own checks
+  // As outline_sigma_px for the joint pose: the outline's information plus
+  // the shading's (as weighted in the joint solve).
+  double joint_sigma_px = std::numeric_limits<double>::infinity();
   // How far apart the outline's pose and the shading's pose put the organ
   // (mean over the organ in view, level-0 px).
   double disagreement_px = std::numeric_limits<double>::infinity();
@@ -30,6 +34,7 @@ struct AgreementLimits {
   int min_lines = 40;
   double max_outline_sigma_px = 1.5;
   double max_disagreement_px = 6.0;
+  double max_joint_sigma_px = 0.0;  // 0: not tested
 };
 
 enum class Agreement : std::uint8_t {

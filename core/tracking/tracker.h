@@ -137,15 +137,21 @@ struct TrackerConfig {
   // measure it. The frame is reported only when the two agree
   // (core/tracking/modality_agreement.h): at least contour_min_lines
   // outline lines measured, the outline alone fixing the organ in view to
-  // contour_max_sigma_px (1 sigma, RMS over the organ, level-0 px), and
-  // the outline's pose alone and the shading's pose alone putting the
-  // organ within contour_agreement_px of each other. The reported
+  // contour_max_sigma_px (1 sigma, RMS over the organ, level-0 px), the
+  // outline's pose alone and the shading's pose alone putting the organ
+  // within contour_agreement_px of each other, and the two together fixing
+  // it to contour_max_joint_sigma_px. The reported
   // pose then minimises both (the shading's information scaled by
   // photometric_weight: its pixels are not independent). Such a frame
   // adds no keyframe.
   bool use_contour = true;
   int contour_min_lines = 40;
   double contour_max_sigma_px = 1.5;
+  // The joint pose's uncertainty (the outline's information plus the
+  // shading's, scaled by photometric_weight), 1 sigma as above; 0: not
+  // tested (the default: docs/design-notes.md, "The outline carries the
+  // pose while it is whole").
+  double contour_max_joint_sigma_px = 0.0;
   double contour_agreement_px = 6.0;
   double photometric_weight = 0.1;
   // The outline also checks weak feature poses: a pose that passed the
@@ -284,6 +290,7 @@ struct TrackResult {
   int contour_lines = 0;
   double contour_rms_px = 0;
   double contour_sigma_px = -1;
+  double joint_sigma_px = -1;     // the outline's and the shading's pose together (when both measured)
   double modality_agreement_px = -1;
   Agreement agreement = Agreement::kNoOutline;
   bool keyframe = false;          // a keyframe was inserted this frame

@@ -64,7 +64,7 @@ class TrackerImpl {
   bool dead_reckon(SE3* T_camera_model, const SE3& T_alternative, DirectAlignSummary* fit = nullptr);
   bool track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackResult* r);
   bool outline_refutes(const PoseEstimate& e, TrackResult* r);
-  double outline_sigma_px(const SE3& T, const ContourFit& fit) const;
+  double outline_sigma_px(const SE3& T, const ContourFit& fit, Mat6* H_out = nullptr) const;
   void learn_colours(const SE3& T, float rate, bool force = false);
   int match_local_map(float radius_px);
   bool solve_pose(SE3* T_camera_model, PoseEstimate* e);

@@ -90,6 +90,8 @@ const std::array kKeys = {
     ST_SETTING(use_contour, 0, 1, "no feature pose: the outline and the shading, if they agree"),
     ST_SETTING(contour_min_lines, 6, RegionModality::kMaxLines, "outline lines needed to measure a pose"),
     ST_SETTING(contour_max_sigma_px, 0, 1000, "the outline alone must fix the organ to this, 1 sigma, level-0 px"),
+    ST_SETTING(contour_max_joint_sigma_px, 0, 1000,
+               "the outline and the shading together must fix the organ to this, 1 sigma, level-0 px (0: no test)"),
     ST_SETTING(contour_agreement_px, 0, 1000, "outline vs shading: organ agreement, level-0 pixels"),
     ST_SETTING(contour_check_inliers, 0, kMaxKeypoints, "feature poses with fewer inliers are checked by the outline (0: never)"),
     ST_SETTING(contour_veto_px, 0.001, 1000, "such a pose is lost if the outline puts the organ this far away, level-0 px"),

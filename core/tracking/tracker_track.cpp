@@ -429,20 +429,28 @@ bool TrackerImpl::track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackRes
   r->contour_lines = evidence.outline_lines;
   r->contour_rms_px = fit.rms_px;
   render_at(shading_ref_.reference_pose());
-  if (evidence.outline_lines > 0) evidence.outline_sigma_px = outline_sigma_px(T_outline, fit);
+  Mat6 H_outline = Mat6::Zero();
+  if (evidence.outline_lines > 0) evidence.outline_sigma_px = outline_sigma_px(T_outline, fit, &H_outline);
   r->contour_sigma_px = evidence.outline_sigma_px;
   lap(Stage::kContour, &t, r);
   SE3 T_shading = T_guess;
   DirectAlignSummary shading;
   evidence.shading_measured = shading_ref_.align(orb_.pyramid().level(align_level_), valid_view_, raster_, camera_,
                                                  &T_shading, &shading, true);
-  if (evidence.outline_lines > 0 && evidence.shading_measured)
+  if (evidence.outline_lines > 0 && evidence.shading_measured) {
     evidence.disagreement_px = view_difference_px(T_outline, T_shading);
+    const Mat6 H_joint = H_outline + config_.photometric_weight * shading.information;
+    const Eigen::SelfAdjointEigenSolver<Mat6> eig(H_joint, Eigen::EigenvaluesOnly);
+    if (eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(5)))
+      evidence.joint_sigma_px = view_sigma_px(H_joint.inverse(), T_outline);
+  }
+  r->joint_sigma_px = evidence.joint_sigma_px;
   r->modality_agreement_px = evidence.outline_lines > 0 && evidence.shading_measured ? evidence.disagreement_px : -1.0;
   AgreementLimits limits;
   limits.min_lines = config_.contour_min_lines;
   limits.max_outline_sigma_px = config_.contour_max_sigma_px;
   limits.max_disagreement_px = config_.contour_agreement_px;
+  limits.max_joint_sigma_px = config_.contour_max_joint_sigma_px;
   r->agreement = judge_agreement(evidence, limits);
   lap(Stage::kContour, &t, r);
   if (r->agreement != Agreement::kAgree) return false;
@@ -483,11 +491,12 @@ bool TrackerImpl::track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackRes
 // how far the organ in view moves (view_sigma_px, on the current render)
 // for the inverse of the lines' normal equations, scaled by their mean
 // chi2 when above 1. Infinite when the lines leave a direction unfixed.
-double TrackerImpl::outline_sigma_px(const SE3& T, const ContourFit& fit) const {
+double TrackerImpl::outline_sigma_px(const SE3& T, const ContourFit& fit, Mat6* H_out) const {
   Mat6 H = Mat6::Zero();
   Vec6 g = Vec6::Zero();
   region_.linearize(T, &H, &g);
   H /= std::max(1.0, fit.chi2_per_line);
+  if (H_out) *H_out = H;
   const Eigen::SelfAdjointEigenSolver<Mat6> eig(H, Eigen::EigenvaluesOnly);
   if (!(eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(5))))
     return std::numeric_limits<double>::infinity();

@@ -102,13 +102,26 @@ Result<std::filesystem::path> simulated_sequence(const Options& opt, const Track
   return dir;
 }
 
-void log_frame(const Options& opt, int index, const TrackResult& r) {
-  char line[256];
-  std::snprintf(line, sizeof line,
-                "frame %d %s: features %d matches %d inliers %d ratio %.2f rms %.2f px mask %.2f jump %.2f deg %.2f mm"
-                " local map %d, map %d points %d keyframes",
-                index, to_string(r.state), r.features, r.matches, r.inliers, r.inlier_ratio, r.rms_px,
-                r.mask_agreement, r.pose_jump_deg, r.pose_jump_mm, r.local_map, r.map_points, r.keyframes);
+// One frame's diagnostics; with ground truth, the pose's error against it.
+void log_frame(const Options& opt, const LoadedSequence& seq, int index, const TrackResult& r) {
+  char line[512];
+  int n = std::snprintf(line, sizeof line,
+                        "frame %d %s: features %d matches %d inliers %d ratio %.2f rms %.2f px mask %.2f jump %.2f deg"
+                        " %.2f mm local map %d, map %d points %d keyframes",
+                        index, to_string(r.state), r.features, r.matches, r.inliers, r.inlier_ratio, r.rms_px,
+                        r.mask_agreement, r.pose_jump_deg, r.pose_jump_mm, r.local_map, r.map_points, r.keyframes);
+  if (r.outline_tried && n > 0 && n < static_cast<int>(sizeof line))
+    n += std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n),
+                       "; outline %s: %d lines sigma %.2f px (joint %.2f), %.2f px from the shading%s",
+                       to_string(r.agreement), r.contour_lines, r.contour_sigma_px, r.joint_sigma_px,
+                       r.modality_agreement_px, r.by_outline ? ", reported" : "");
+  if (r.state != TrackState::kLost && index >= 0 && static_cast<std::size_t>(index) < seq.groundtruth.size() && n > 0 &&
+      n < static_cast<int>(sizeof line)) {
+    const SE3 truth = seq.groundtruth[static_cast<std::size_t>(index)].T_model_camera.inverse();
+    const PoseDelta d = pose_delta(truth, r.T_camera_model);
+    const double mm = (truth.inverse().translation() - r.T_camera_model.inverse().translation()).norm();
+    std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n), "; error %.2f deg %.2f mm", d.angle_deg, mm);
+  }
   info(opt, line);
 }
 
@@ -147,7 +160,7 @@ Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, cons
     allocs += platform::thread_allocation_count() - a0;
     run.stages.push_back(r.times_ms);
     run.lost += r.state == TrackState::kLost ? 1 : 0;
-    if (f.index < a.log_frames) log_frame(opt, f.index, r);
+    if (f.index < a.log_frames) log_frame(opt, seq, f.index, r);
   }
   tracker->stop();
   if (!reader.error().empty()) return make_error(reader.error());

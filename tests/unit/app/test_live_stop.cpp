@@ -157,7 +157,7 @@ TEST_CASE("live run: SIGINT or SIGTERM mid-run stops after the frame, rows and s
   }
 }
 
-TEST_CASE("live run: a source that ends gives stop_signal 0; one that fails gives exit 1 and its error" *
+TEST_CASE("live run: a source that ends gives stop_signal 0, one that fails gives exit 1 and its error" *
           doctest::timeout(120)) {
   const RenderedOrbit& orbit = liver_orbit40();
   BlockedStopSignals blocked;

@@ -1,6 +1,6 @@
 // judge_agreement: a pose without features is reported only when the
-// outline and the shading both measured it, the outline alone fixes the
-// organ in view, and the two agree.
+// outline and the shading both measured it, the outline alone places the
+// organ in view, the two agree, and together they fix it.
 #include <doctest/doctest.h>
 
 #include <cmath>
@@ -19,6 +19,7 @@ OutlineShadingEvidence agreeing() {
   e.outline_sigma_px = 0.8;
   e.shading_measured = true;
   e.disagreement_px = 2.0;
+  e.joint_sigma_px = 0.3;
   return e;
 }
 
@@ -32,6 +33,7 @@ TEST_CASE("modality agreement: both measured, the outline tight, the same place:
   e.outline_lines = limits.min_lines;
   e.outline_sigma_px = limits.max_outline_sigma_px;
   e.disagreement_px = limits.max_disagreement_px;
+  e.joint_sigma_px = limits.max_joint_sigma_px;
   CHECK(judge_agreement(e, limits) == Agreement::kAgree);
 }
 
@@ -68,4 +70,30 @@ TEST_CASE("modality agreement: NaN and infinity never agree") {
     CHECK(judge_agreement(e, limits) == Agreement::kDisagree);
   }
   CHECK(std::string(to_string(Agreement::kNoShading)) == "no_shading");
+}
+
+TEST_CASE("modality agreement: the outline and the shading together must fix the organ") {
+  AgreementLimits limits;
+  limits.max_outline_sigma_px = 4.0;
+  limits.max_joint_sigma_px = 1.5;
+  OutlineShadingEvidence e = agreeing();
+  e.outline_sigma_px = 3.5;  // the outline alone places the organ only roughly...
+  e.joint_sigma_px = 0.4;    // ...but the shading fixes what it leaves open
+  CHECK(judge_agreement(e, limits) == Agreement::kAgree);
+  e.joint_sigma_px = 1.6;
+  CHECK(judge_agreement(e, limits) == Agreement::kOutlineLoose);
+  for (double bad : {std::nan(""), std::numeric_limits<double>::infinity()}) {
+    e.joint_sigma_px = bad;
+    CHECK(judge_agreement(e, limits) == Agreement::kOutlineLoose);
+  }
+  // The outline's own cap still holds whatever the joint pose.
+  e = agreeing();
+  e.outline_sigma_px = 4.1;
+  e.joint_sigma_px = 0.2;
+  CHECK(judge_agreement(e, limits) == Agreement::kOutlineLoose);
+  // Not tested when its limit is 0 (the evidence's default is infinite).
+  limits.max_joint_sigma_px = 0.0;
+  e = agreeing();
+  e.joint_sigma_px = std::numeric_limits<double>::infinity();
+  CHECK(judge_agreement(e, limits) == Agreement::kAgree);
 }
