@@ -15,8 +15,11 @@
 //    so the quantised silhouette does not pull the outline inwards), the
 //    outward normal (from the mask's local moments) and the model point
 //    there (render depth).
-//  - Along each line the frame's colour (Y at 8 levels: the scope light's
-//    falloff changes brightness more than hue; U and V at 16) is read at
+//  - Along each line the frame's colour (Y at 8 levels; U and V as ratios
+//    to the luma above black, (C - 128) / max(Y - 16, 16), at 16 levels
+//    over [-0.75, 0.75]: a surface's chroma falls with its luma, so the
+//    organ's rim, darkened where the surface turns away from the light,
+//    keeps the organ's hue instead of looking like grey background) is read at
 //    2 kHalfLength + 1 steps; the organ's and the background's colour
 //    histograms, learnt online along the lines at tracked poses, turn each
 //    sample into P(organ). The outline's position
@@ -71,7 +74,7 @@ class RegionModality {
   static constexpr int kMaxLines = 240;
   static constexpr int kHalfLength = 10;      // samples on each side of the centre
   static constexpr int kSamples = 2 * kHalfLength + 1;
-  static constexpr int kBins = 8 * 16 * 16;  // Y at 3 bits, U and V at 4 bits each
+  static constexpr int kBins = 8 * 16 * 16;  // Y at 3 bits, U and V ratios at 4 bits each
 
   // width x height: the frame. The mesh is copied into the modality's own
   // rasteriser.

@@ -2,9 +2,9 @@
 // outline (core/contour/region_modality.h) and its shading (direct
 // alignment against the last reported frame, core/motion/direct_alignment.h)
 // are independent measurements of the pose; a pose is reported only when
-// both measured one, the outline alone places the organ in view, the two
-// put the organ at the same place, and (optionally) together they fix it
-// (the shading fixing what a short outline leaves open). A pose that one modality
+// both measured one, the outline alone places the organ in view to a few
+// pixels, the two put the organ at the same place, and together they fix
+// it to a pixel or so (the shading fixes what a short outline leaves open). A pose that one modality
 // alone supports stays lost. Pure function of the evidence; tracking
 // thread.
 #pragma once
@@ -32,9 +32,9 @@ struct OutlineShadingEvidence {
 
 struct AgreementLimits {
   int min_lines = 40;
-  double max_outline_sigma_px = 1.5;
+  double max_outline_sigma_px = 3.0;
   double max_disagreement_px = 6.0;
-  double max_joint_sigma_px = 0.0;  // 0: not tested
+  double max_joint_sigma_px = 1.5;  // 0: not tested
 };
 
 enum class Agreement : std::uint8_t {

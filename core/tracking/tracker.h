@@ -146,12 +146,12 @@ struct TrackerConfig {
   // adds no keyframe.
   bool use_contour = true;
   int contour_min_lines = 40;
-  double contour_max_sigma_px = 1.5;
+  double contour_max_sigma_px = 3.0;
   // The joint pose's uncertainty (the outline's information plus the
   // shading's, scaled by photometric_weight), 1 sigma as above; 0: not
-  // tested (the default: docs/design-notes.md, "The outline carries the
-  // pose while it is whole").
-  double contour_max_joint_sigma_px = 0.0;
+  // tested (with contour_max_sigma_px 1.5: the gate before the joint test,
+  // docs/design-notes.md).
+  double contour_max_joint_sigma_px = 1.5;
   double contour_agreement_px = 6.0;
   double photometric_weight = 0.1;
   // The outline also checks weak feature poses: a pose that passed the
@@ -291,6 +291,7 @@ struct TrackResult {
   double contour_rms_px = 0;
   double contour_sigma_px = -1;
   double joint_sigma_px = -1;     // the outline's and the shading's pose together (when both measured)
+  SE3 T_outline, T_shading;       // each one's pose alone (outline_tried; diagnostics)
   double modality_agreement_px = -1;
   Agreement agreement = Agreement::kNoOutline;
   bool keyframe = false;          // a keyframe was inserted this frame

@@ -427,6 +427,7 @@ bool TrackerImpl::track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackRes
   if (region_.estimate(luma_, chroma_, valid_view_, camera_, &T_outline, &fit, config_.contour_min_lines))
     evidence.outline_lines = fit.lines;
   r->contour_lines = evidence.outline_lines;
+  r->T_outline = T_outline;
   r->contour_rms_px = fit.rms_px;
   render_at(shading_ref_.reference_pose());
   Mat6 H_outline = Mat6::Zero();
@@ -445,6 +446,7 @@ bool TrackerImpl::track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackRes
       evidence.joint_sigma_px = view_sigma_px(H_joint.inverse(), T_outline);
   }
   r->joint_sigma_px = evidence.joint_sigma_px;
+  r->T_shading = T_shading;
   r->modality_agreement_px = evidence.outline_lines > 0 && evidence.shading_measured ? evidence.disagreement_px : -1.0;
   AgreementLimits limits;
   limits.min_lines = config_.contour_min_lines;

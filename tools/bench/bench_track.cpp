@@ -115,12 +115,20 @@ void log_frame(const Options& opt, const LoadedSequence& seq, int index, const T
                        "; outline %s: %d lines sigma %.2f px (joint %.2f), %.2f px from the shading%s",
                        to_string(r.agreement), r.contour_lines, r.contour_sigma_px, r.joint_sigma_px,
                        r.modality_agreement_px, r.by_outline ? ", reported" : "");
-  if (r.state != TrackState::kLost && index >= 0 && static_cast<std::size_t>(index) < seq.groundtruth.size() && n > 0 &&
-      n < static_cast<int>(sizeof line)) {
+  if (index >= 0 && static_cast<std::size_t>(index) < seq.groundtruth.size()) {
     const SE3 truth = seq.groundtruth[static_cast<std::size_t>(index)].T_model_camera.inverse();
-    const PoseDelta d = pose_delta(truth, r.T_camera_model);
-    const double mm = (truth.inverse().translation() - r.T_camera_model.inverse().translation()).norm();
-    std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n), "; error %.2f deg %.2f mm", d.angle_deg, mm);
+    const auto error = [&](const char* what, const SE3& T) {
+      if (n <= 0 || n >= static_cast<int>(sizeof line)) return;
+      const PoseDelta d = pose_delta(truth, T);
+      const double mm = (truth.inverse().translation() - T.inverse().translation()).norm();
+      n += std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n), "; %s %.2f deg %.2f mm", what,
+                         d.angle_deg, mm);
+    };
+    if (r.state != TrackState::kLost) error("error", r.T_camera_model);
+    if (r.outline_tried) {
+      error("outline's error", r.T_outline);
+      error("shading's", r.T_shading);
+    }
   }
   info(opt, line);
 }
