@@ -43,16 +43,32 @@ Status StreamLink::start() {
   return Status::Ok();
 }
 
-void StreamLink::frame_done(const FrameRef& frame, const TrackResult& r, double latency_ms) {
+PoseSample pose_sample(const FrameRef& frame, const TrackResult& r, double latency_ms, double fps) {
   PoseSample p;
   p.frame = static_cast<std::uint32_t>(std::max(frame.index, 0));
-  p.timestamp_ns = fps_ > 0 ? static_cast<std::int64_t>(std::llround(frame.index * 1e9 / fps_)) : 0;
+  p.timestamp_ns = fps > 0 ? static_cast<std::int64_t>(std::llround(frame.index * 1e9 / fps)) : 0;
   const bool posed = r.pose_valid && r.T_camera_model.all_finite();
   p.state = posed ? r.state : TrackState::kLost;
   p.inliers = static_cast<std::uint16_t>(std::clamp(r.inliers, 0, 65535));
   p.quality = posed ? static_cast<float>(r.inlier_ratio) : 0.f;
   p.latency_us = static_cast<std::uint32_t>(std::clamp(latency_ms * 1e3, 0.0, 4e9));
+  p.by_outline = posed && r.by_outline;
+  if (r.outline_tried) {
+    // -1: not measured; an uncertainty with a direction left unfixed
+    // (infinite) is sent as 1e6.
+    const auto px = [](double v) { return std::isnan(v) || v < 0 ? -1.f : static_cast<float>(std::min(v, 1e6)); };
+    p.outline_lines = static_cast<std::uint16_t>(std::clamp(r.contour_lines, 0, 65535));
+    p.outline_sigma_px = r.contour_lines > 0 ? px(r.contour_sigma_px) : -1.f;
+    p.joint_sigma_px = r.contour_lines > 0 && r.modality_agreement_px >= 0 ? px(r.joint_sigma_px) : -1.f;
+    p.outline_shading_px = px(r.modality_agreement_px);
+  }
   if (posed) set_pose(&p, r.T_camera_model);
+  return p;
+}
+
+void StreamLink::frame_done(const FrameRef& frame, const TrackResult& r, double latency_ms) {
+  const PoseSample p = pose_sample(frame, r, latency_ms, fps_);
+  const bool posed = p.state != TrackState::kLost;
   if (r.calibration_suspect) sink_.note_calibration_suspect(r.calibration_focal_scale);
   sink_.push_pose(p);
   if (!posed) return;

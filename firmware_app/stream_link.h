@@ -27,6 +27,12 @@ struct StreamLinkConfig {
   double flush_timeout_s = 5;  // at the end: time for consoles to read what is queued
 };
 
+// One frame's pose message: the tracker's result as the console receives
+// it (lost unless a finite pose was reported; the outline's and the
+// shading's evidence where they were measured). fps: the source's, for
+// the time stamp (0: unknown).
+PoseSample pose_sample(const FrameRef& frame, const TrackResult& r, double latency_ms, double fps);
+
 class StreamLink : public FrameObserver {
  public:
   Status configure(const StreamLinkConfig& config, const LoadedSequence& sequence);

@@ -85,6 +85,14 @@ PoseSample pose_from_wire(const stream::Pose& p) {
   return s;
 }
 
+void evidence_from_wire(const stream::PoseEvidence& e, PoseSample* s) {
+  s->by_outline = e.source() == stream::PoseSource::Outline;
+  s->outline_lines = e.outline_lines();
+  s->outline_sigma_px = e.outline_sigma_px();
+  s->joint_sigma_px = e.joint_sigma_px();
+  s->outline_shading_px = e.outline_shading_px();
+}
+
 }  // namespace
 
 void set_pose(PoseSample* s, const SE3& T_camera_model) {
@@ -141,7 +149,10 @@ std::span<const std::uint8_t> StreamEncoder::pose(const PoseSample& p) {
   const stream::Pose wire(p.frame, to_wire(p.state), p.inliers, p.timestamp_ns, p.q_xyzw[0],
                           p.q_xyzw[1], p.q_xyzw[2], p.q_xyzw[3], p.t_mm[0], p.t_mm[1], p.t_mm[2],
                           p.quality, p.latency_us);
-  const auto m = stream::CreatePoseUpdate(fbb_, &wire);
+  const stream::PoseEvidence evidence(p.by_outline ? stream::PoseSource::Outline : stream::PoseSource::Features,
+                                      p.outline_lines, p.outline_sigma_px, p.joint_sigma_px,
+                                      p.outline_shading_px);
+  const auto m = stream::CreatePoseUpdate(fbb_, &wire, &evidence);
   return finish(stream::Payload::PoseUpdate, m.Union());
 }
 
@@ -201,6 +212,7 @@ Result<DecodedMessage> decode_message(std::span<const std::uint8_t> b) {
   } else if (const auto* p = msg->payload_as_PoseUpdate(); p && p->pose()) {
     out.kind = MessageKind::kPose;
     out.pose = pose_from_wire(*p->pose());
+    if (const auto* e = p->evidence()) evidence_from_wire(*e, &out.pose);
   } else if (const auto* c = msg->payload_as_ColourDelta()) {
     out.kind = MessageKind::kColours;
     out.colours = c->colours();

@@ -43,6 +43,10 @@ struct PoseSample {
   double t_mm[3] = {0, 0, 0};       // translation of T_model_camera
   float quality = 0;                // inlier ratio, 0..1
   std::uint32_t latency_us = 0;
+  // PoseEvidence: what the outline and the shading saw (-1: not measured).
+  bool by_outline = false;          // the pose is the outline's and the shading's
+  std::uint16_t outline_lines = 0;
+  float outline_sigma_px = -1, joint_sigma_px = -1, outline_shading_px = -1;
 };
 // Fills q/t from T_camera_model (inverted: the stream carries T_model_camera).
 void set_pose(PoseSample* s, const SE3& T_camera_model);

@@ -111,6 +111,11 @@ std::string ConsoleSession::status_line() const {
                 h.dropped_messages, h.overruns, coloured_count_,
                 hello_ ? hello_->mesh_triangle_count : 0u);
   std::string line = buf;
+  if (p.by_outline && p.state != TrackState::kLost) {
+    std::snprintf(buf, sizeof(buf), "  by the outline (%u lines, %.1f px apart from the shading)",
+                  static_cast<unsigned>(p.outline_lines), static_cast<double>(p.outline_shading_px));
+    line += buf;
+  }
   if (h.calibration_suspect) {
     std::snprintf(buf, sizeof(buf), "  CALIBRATION SUSPECT (the video fits focal lengths x%.3f)",
                   static_cast<double>(h.calibration_focal_scale));

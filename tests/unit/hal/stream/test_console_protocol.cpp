@@ -284,6 +284,46 @@ TEST_CASE(
   }
 }
 
+TEST_CASE("console_protocol: a pose's evidence (outline, shading) round trips, an older sender's reads as none") {
+  StreamEncoder enc;
+  PoseSample p = sample_pose();
+  p.inliers = 0;
+  p.quality = 0;
+  p.by_outline = true;
+  p.outline_lines = 212;
+  p.outline_sigma_px = 2.25f;
+  p.joint_sigma_px = 0.5f;
+  p.outline_shading_px = 1.75f;
+  const Bytes bytes = copy(enc.pose(p));
+  auto d = decode_message(bytes);
+  REQUIRE_MESSAGE(d.ok(), d.message());
+  CHECK(d->pose.by_outline);
+  CHECK(d->pose.outline_lines == 212);
+  CHECK(d->pose.outline_sigma_px == 2.25f);
+  CHECK(d->pose.joint_sigma_px == 0.5f);
+  CHECK(d->pose.outline_shading_px == 1.75f);
+  // A feature pose with nothing measured by the outline.
+  const Bytes plain = copy(enc.pose(sample_pose()));
+  auto f = decode_message(plain);
+  REQUIRE(f.ok());
+  CHECK_FALSE(f->pose.by_outline);
+  CHECK(f->pose.outline_lines == 0);
+  CHECK(f->pose.outline_sigma_px == -1.f);
+  // A sender from before the evidence field: a PoseUpdate with the pose only.
+  flatbuffers::FlatBufferBuilder fbb;
+  const stream::Pose wire(7, stream::TrackingState::Tracking, 90, 0, 0, 0, 0, 1, 1, 2, 3, 0.5f, 100);
+  const auto update = stream::CreatePoseUpdate(fbb, &wire);
+  stream::FinishSizePrefixedMessageBuffer(fbb, stream::CreateMessage(fbb, stream::Payload::PoseUpdate, update.Union()));
+  const Bytes old(fbb.GetBufferPointer(), fbb.GetBufferPointer() + fbb.GetSize());
+  auto o = decode_message(old);
+  REQUIRE_MESSAGE(o.ok(), o.message());
+  CHECK(o->pose.frame == 7);
+  CHECK(o->pose.inliers == 90);
+  CHECK_FALSE(o->pose.by_outline);
+  CHECK(o->pose.outline_lines == 0);
+  CHECK(o->pose.joint_sigma_px == -1.f);
+}
+
 TEST_CASE("console_protocol: endpoints parse, bad ones say why") {
   platform::Endpoint e;
   std::string err;
