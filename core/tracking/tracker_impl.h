@@ -60,6 +60,7 @@ class TrackerImpl {
   double image_shift_px(const SE3& a, const SE3& b) const;
   double view_difference_px(const SE3& a, const SE3& b) const;
   double view_sigma_px(const Mat6& cov, const SE3& T) const;
+  double information_sigma_px(const Mat6& H, const SE3& T) const;
   SE3 motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted);
   bool dead_reckon(SE3* T_camera_model, const SE3& T_alternative, DirectAlignSummary* fit = nullptr);
   bool track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackResult* r);

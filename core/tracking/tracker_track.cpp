@@ -440,10 +440,8 @@ bool TrackerImpl::track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackRes
                                                  &T_shading, &shading, true);
   if (evidence.outline_lines > 0 && evidence.shading_measured) {
     evidence.disagreement_px = view_difference_px(T_outline, T_shading);
-    const Mat6 H_joint = H_outline + config_.photometric_weight * shading.information;
-    const Eigen::SelfAdjointEigenSolver<Mat6> eig(H_joint, Eigen::EigenvaluesOnly);
-    if (eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(5)))
-      evidence.joint_sigma_px = view_sigma_px(H_joint.inverse(), T_outline);
+    evidence.joint_sigma_px =
+        information_sigma_px(H_outline + config_.photometric_weight * shading.information, T_outline);
   }
   r->joint_sigma_px = evidence.joint_sigma_px;
   r->T_shading = T_shading;
@@ -489,20 +487,26 @@ bool TrackerImpl::track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackRes
   return true;
 }
 
+// How far the organ in view moves (view_sigma_px, on the current render)
+// for a pose of information H (normal equations) at T: view_sigma_px of
+// H's inverse. Infinite when H leaves a direction unfixed.
+double TrackerImpl::information_sigma_px(const Mat6& H, const SE3& T) const {
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(H, Eigen::EigenvaluesOnly);
+  if (!(eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(5))))
+    return std::numeric_limits<double>::infinity();
+  return view_sigma_px(H.inverse(), T);
+}
+
 // The outline's own uncertainty at its pose T (fit: what estimate() saw):
-// how far the organ in view moves (view_sigma_px, on the current render)
-// for the inverse of the lines' normal equations, scaled by their mean
-// chi2 when above 1. Infinite when the lines leave a direction unfixed.
+// information_sigma_px of the lines' normal equations, scaled by their
+// mean chi2 when above 1; *H_out (optional) gets those scaled equations.
 double TrackerImpl::outline_sigma_px(const SE3& T, const ContourFit& fit, Mat6* H_out) const {
   Mat6 H = Mat6::Zero();
   Vec6 g = Vec6::Zero();
   region_.linearize(T, &H, &g);
   H /= std::max(1.0, fit.chi2_per_line);
   if (H_out) *H_out = H;
-  const Eigen::SelfAdjointEigenSolver<Mat6> eig(H, Eigen::EigenvaluesOnly);
-  if (!(eig.eigenvalues()(0) > 1e-12 * std::max(1.0, eig.eigenvalues()(5))))
-    return std::numeric_limits<double>::infinity();
-  return view_sigma_px(H.inverse(), T);
+  return information_sigma_px(H, T);
 }
 
 // A weak feature pose, checked by the organ's outline measured from it

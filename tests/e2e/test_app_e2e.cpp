@@ -18,6 +18,7 @@
 #include "tools/eval/eval_report.h"
 
 using namespace st;
+using st::test::summary_number;
 
 namespace {
 
@@ -70,12 +71,6 @@ const std::string kDeterministic = " --ba-lag 3";
 
 // Refining the registration (off by default; see TrackerConfig::registration_sigma_deg).
 const std::string kRefineRegistration = " --set registration_sigma_deg=1 --set registration_sigma_mm=2";
-
-double summary_number(const std::filesystem::path& out, const std::string& key) {
-  auto v = json_number(test::read_file_bytes(out / "summary.json"), key);
-  REQUIRE_MESSAGE(v.ok(), key);
-  return v.value();
-}
 
 int data_lines(const std::filesystem::path& p) {
   std::ifstream f(p);

@@ -19,6 +19,7 @@
 #include "tools/eval/eval_report.h"
 
 using namespace st;
+using st::test::summary_number;
 
 namespace {
 
@@ -86,12 +87,6 @@ std::vector<std::string> lines_of(const std::filesystem::path& p) {
   for (std::string line; std::getline(f, line);)
     if (!line.empty() && line[0] != '#') out.push_back(line);
   return out;
-}
-
-double summary_number(const std::filesystem::path& out, const std::string& key) {
-  auto v = json_number(test::read_file_bytes(out / "summary.json"), key);
-  REQUIRE_MESSAGE(v.ok(), key);
-  return v.value();
 }
 
 LoadedSequence load(const std::filesystem::path& dir) {

@@ -25,11 +25,11 @@
 #include "platform/socket.h"
 #include "support/shell.h"
 #include "support/support.h"
-#include "tools/eval/eval_report.h"
 #include "tools/sim/renderer.h"
 #include "tools/sim/sim_run.h"
 
 using namespace st;
+using st::test::summary_number;
 
 namespace {
 
@@ -96,12 +96,6 @@ Reference reference_texture(const Mesh& mesh, const Pinhole& K, const std::vecto
     for (std::size_t t = 0; t < n; ++t) ref.frames[t] += count[t] >= 3 ? 1 : 0;
   }
   return ref;
-}
-
-double summary_number(const std::filesystem::path& out, const std::string& key) {
-  auto v = json_number(test::read_file_bytes(out / "summary.json"), key);
-  REQUIRE_MESSAGE(v.ok(), key);
-  return v.value();
 }
 
 }  // namespace

@@ -1,11 +1,15 @@
 #include "support/support.h"
 
+#include <doctest/doctest.h>
+
 #include <cstring>
 #include <fstream>
 #include <mutex>
 #include <sstream>
 #include <unistd.h>
 #include <vector>
+
+#include "tools/eval/eval_report.h"
 
 namespace st::test {
 namespace {
@@ -40,6 +44,12 @@ std::string read_file_bytes(const std::filesystem::path& p) {
   std::ostringstream ss;
   ss << f.rdbuf();
   return ss.str();
+}
+
+double summary_number(const std::filesystem::path& run_dir, const std::string& key) {
+  auto v = json_number(read_file_bytes(run_dir / "summary.json"), key);
+  REQUIRE_MESSAGE(v.ok(), key);
+  return v.value();
 }
 
 }  // namespace st::test

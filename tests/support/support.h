@@ -47,4 +47,8 @@ inline constexpr const char* kProcessSuite = "process";
 // Reads a whole file into bytes (test fixtures).
 std::string read_file_bytes(const std::filesystem::path& p);
 
+// A number field of run_dir/summary.json (a run's output folder); the test
+// fails (REQUIRE) when the field is missing.
+double summary_number(const std::filesystem::path& run_dir, const std::string& key);
+
 }  // namespace st::test

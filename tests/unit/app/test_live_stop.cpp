@@ -19,7 +19,6 @@
 #include "platform/clock.h"
 #include "support/support.h"
 #include "support/track_scene.h"
-#include "tools/eval/eval_report.h"
 
 using namespace st;
 using namespace st::test;
@@ -111,12 +110,6 @@ LiveRun live_run(const RenderedOrbit& orbit, FrameSource* source, const std::fil
   run.source = source;
   run.print_status = false;
   return run;
-}
-
-double summary_number(const std::filesystem::path& out, const std::string& key) {
-  auto v = json_number(read_file_bytes(out / "summary.json"), key);
-  REQUIRE_MESSAGE(v.ok(), key);
-  return v.value();
 }
 
 int csv_rows(const std::filesystem::path& file) {
