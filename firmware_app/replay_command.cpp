@@ -107,11 +107,12 @@ Result<TrackerConfig> tracker_config(const LoadedSequence& seq, const ReplayArgs
   return c;
 }
 
-void print_result(const RunStats& s, const std::string& out_dir) {
-  std::printf("%d frames: %d with a pose, %d lost (%d relocalised)  %.1f fps  latency mean %.2f ms p99 %.2f ms"
-              "  peak RSS %.0f MB  tracking-thread allocations %lld\n-> %s\n",
-              s.frames, s.tracked, s.lost, s.relocalised, s.fps, s.mean_latency_ms, s.p99_latency_ms,
-              s.peak_rss_mb, static_cast<long long>(s.tracking_thread_allocations), out_dir.c_str());
+void print_result(const RunStats& s, const Pinhole& frames, const Pinhole& working, const std::string& out_dir) {
+  std::printf("%d frames of %dx%d, tracked at %dx%d: %d with a pose, %d lost (%d relocalised)  %.1f fps  latency mean"
+              " %.2f ms p99 %.2f ms  peak RSS %.0f MB  tracking-thread allocations %lld\n-> %s\n",
+              s.frames, frames.width, frames.height, working.width, working.height, s.tracked, s.lost, s.relocalised,
+              s.fps, s.mean_latency_ms, s.p99_latency_ms, s.peak_rss_mb,
+              static_cast<long long>(s.tracking_thread_allocations), out_dir.c_str());
 }
 
 // The console link (--stream): listening before the first frame; nullptr
@@ -239,7 +240,7 @@ int run_replay(Args argv) {
     std::fprintf(stderr, "scopetrack: %s\n", stats.message().c_str());
     return 1;
   }
-  print_result(stats.value(), args.out);
+  print_result(stats.value(), c.K, processor->working_pinhole(), args.out);
   if (const int sig = stats->stop_signal; sig != 0) {
     std::fprintf(stderr, "scopetrack: stopped by %s after %d frames (their output is in %s)\n",
                  sig == SIGINT ? "SIGINT" : "SIGTERM", stats->frames, args.out.c_str());

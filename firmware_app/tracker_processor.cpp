@@ -17,7 +17,7 @@ Status TrackerProcessor::configure(const TrackerConfig& config, const Mesh& mesh
   mesh_triangles_ = mesh.triangle_count();
   if (Status s = tracker_.configure(config, mesh, camera, T_camera_model_init); !s.ok()) return s;
   if (config.use_ba) {
-    if (Status s = mapping_.configure(config, mesh, camera.pinhole()); !s.ok()) return s;
+    if (Status s = mapping_.configure(config, mesh, tracker_.working_camera().pinhole()); !s.ok()) return s;
     tracker_.set_ba_channel(&mapping_);
     use_ba_ = true;
   }
@@ -62,6 +62,9 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
     const std::string name = to_string(static_cast<Stage>(i));
     fields->emplace_back("stage_" + name + "_mean_ms", stage_sum_ms_[i] / static_cast<double>(stage_runs_[i]));
   }
+  const Pinhole working = tracker_.working_camera().pinhole();
+  fields->emplace_back("working_width", working.width);
+  fields->emplace_back("working_height", working.height);
   fields->emplace_back("mesh_triangles", static_cast<double>(mesh_triangles_));
   fields->emplace_back("raster_triangles", static_cast<double>(tracker_.raster_triangles()));
   fields->emplace_back("occluder_mask_frames", static_cast<double>(occluder_frames_));

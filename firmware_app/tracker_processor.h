@@ -30,6 +30,8 @@ class TrackerProcessor : public FrameProcessor {
   void append_summary(std::vector<std::pair<std::string, double>>* fields) const override;
   // The tracker's calibration test (TrackerConfig::check_calibration).
   CalibrationCheck calibration_check() const { return tracker_.calibration_check(); }
+  // The size the tracker works at (TrackerConfig::working_width).
+  Pinhole working_pinhole() const { return tracker_.working_camera().pinhole(); }
 
  private:
   Tracker tracker_;

@@ -27,6 +27,10 @@ struct Pinhole {
   Pinhole scaled(double s, int new_width, int new_height) const {
     return {fx * s, fy * s, (cx + 0.5) * s - 0.5, (cy + 0.5) * s - 0.5, new_width, new_height};
   }
+  // Scaled by sx across and sy down (an image resampled to another aspect's rounding).
+  Pinhole scaled(double sx, double sy, int new_width, int new_height) const {
+    return {fx * sx, fy * sy, (cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5, new_width, new_height};
+  }
   bool in_image(const Vec2& px, double border = 0.0) const {
     return px.x() >= border && px.y() >= border && px.x() <= width - 1 - border &&
            px.y() <= height - 1 - border;

@@ -27,7 +27,21 @@ Status check_frame(const TrackerConfig& c, const CameraModel& camera) {
   return Status::Ok();
 }
 
+// The result's pixel figures from working pixels to the frame's (-1: not
+// measured, stays).
+void to_input_pixels(double f, TrackResult* r) {
+  for (double* v : {&r->rms_px, &r->whitened_rms_px, &r->contour_rms_px, &r->contour_sigma_px, &r->joint_sigma_px,
+                    &r->modality_agreement_px})
+    if (*v > 0) *v *= f;
+}
+
 }  // namespace
+
+WorkingSize working_size(int width, int height, int working_width) {
+  if (working_width <= 0 || width <= working_width) return {width, height};
+  const int h = static_cast<int>(std::lround(static_cast<double>(height) * working_width / width));
+  return {working_width, std::max(1, h)};
+}
 
 Status validate_tracker_settings(const TrackerConfig& c) {
   const auto err = [](const std::string& m) { return Status(make_error("tracker config: " + m)); };
@@ -40,6 +54,8 @@ Status validate_tracker_settings(const TrackerConfig& c) {
   if (c.max_map_points < c.features.n_features || c.max_map_points > kMaxMapPoints)
     return err("max_map_points " + std::to_string(c.max_map_points) + " outside [features.n_features, " +
                std::to_string(kMaxMapPoints) + "]");
+  if (c.working_width < 0 || c.working_width > kMaxImageWidth)
+    return err("working_width " + std::to_string(c.working_width) + " outside [0, " + std::to_string(kMaxImageWidth) + "]");
   if (c.raster_downscale != 1 && c.raster_downscale != 2 && c.raster_downscale != 4)
     return err("raster_downscale must be 1, 2 or 4");
   if (c.max_raster_triangles != 0 && (c.max_raster_triangles < 1000 || c.max_raster_triangles > kMaxMeshTriangles))
@@ -101,12 +117,40 @@ Status validate_tracker_settings(const TrackerConfig& c) {
   return Status::Ok();
 }
 
-Status TrackerImpl::configure(const TrackerConfig& config, const Mesh& mesh, const CameraModel& camera,
+Status TrackerImpl::configure(const TrackerConfig& input_config, const Mesh& mesh, const CameraModel& input_camera,
                               const SE3& T_camera_model_init) {
-  if (Status s = check_frame(config, camera); !s.ok()) return s;
-  if (Status s = validate_tracker_settings(config); !s.ok()) return s;
+  if (Status s = check_frame(input_config, input_camera); !s.ok()) return s;
+  if (Status s = validate_tracker_settings(input_config); !s.ok()) return s;
   if (mesh.triangle_count() <= 0) return make_error("tracker: the mesh has no triangles");
   if (!T_camera_model_init.all_finite()) return make_error("tracker: T_camera_model_init is not finite");
+  // The working resolution: everything below sees the frame, the
+  // calibration and the settings at it.
+  input_width_ = input_config.width;
+  input_height_ = input_config.height;
+  const WorkingSize ws = working_size(input_config.width, input_config.height, input_config.working_width);
+  scaling_ = ws.width != input_config.width;
+  TrackerConfig config = input_config;
+  CameraModel camera = input_camera;
+  input_px_per_working_px_ = 1.0;
+  if (scaling_) {
+    const double sx = static_cast<double>(ws.width) / input_config.width;
+    const double sy = static_cast<double>(ws.height) / input_config.height;
+    config.width = ws.width;
+    config.height = ws.height;
+    camera = CameraModel(input_camera.pinhole().scaled(sx, sy, ws.width, ws.height), input_camera.distortion());
+    if (Status s = CameraModel::validate(camera.pinhole(), camera.distortion()); !s.ok())
+      return make_error("tracker: the calibration at the working size " + std::to_string(ws.width) + "x" +
+                        std::to_string(ws.height) + ": " + s.message());
+    input_px_per_working_px_ = 1.0 / sx;
+    if (Status s = luma_scaler_.configure(input_config.width, input_config.height, ws.width, ws.height); !s.ok())
+      return make_error("tracker: working_width: " + s.message());
+    const int cw = (input_config.width + 1) / 2, ch = (input_config.height + 1) / 2;
+    if (Status s = chroma_scaler_.configure(cw, ch, (ws.width + 1) / 2, (ws.height + 1) / 2); !s.ok())
+      return make_error("tracker: working_width: " + s.message());
+    work_y_.allocate(ws.width, ws.height);
+    work_u_.allocate((ws.width + 1) / 2, (ws.height + 1) / 2);
+    work_v_.allocate((ws.width + 1) / 2, (ws.height + 1) / 2);
+  }
   config_ = config;
   camera_ = camera;
   K_ = camera.pinhole();
@@ -215,11 +259,20 @@ void TrackerImpl::start() {
 TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma) {
   TrackResult r;
   const double t0 = now_ms();
-  if (!started_ || luma.empty() || luma.width != config_.width || luma.height != config_.height) {
+  if (!started_ || luma.empty() || luma.width != input_width_ || luma.height != input_height_) {
     r.map_points = map_.point_count();
     r.keyframes = map_.keyframe_count();
     return r;  // defined degraded state: lost, no pose
   }
+  if (scaling_) {
+    luma_scaler_.scale(luma, work_y_.view());
+    luma = work_y_.cview();
+    if (!chroma.empty() && chroma_scaler_.scale(chroma.u, work_u_.view()) && chroma_scaler_.scale(chroma.v, work_v_.view()))
+      chroma = ChromaView{work_u_.cview(), work_v_.cview()};
+    else
+      chroma = ChromaView{};  // none, or planes of another size: no occluder mask, as at the frame's size
+  }
+  const double t_scaled = now_ms();
   const bool ba_applied = ba_.apply(&map_);  // safe point: nothing of this frame uses the map yet
   ba_.note_frame(frame_index);
   valid_view_ = valid_scene_ = valid_mask_.build(luma);
@@ -236,7 +289,8 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
   } else {
     r = track(luma, frame_index);
   }
-  r.times_ms[static_cast<int>(Stage::kPyramid)] += t_valid - t0;  // valid mask (and BA apply)
+  if (scaling_) r.times_ms[static_cast<int>(Stage::kScale)] = t_scaled - t0;
+  r.times_ms[static_cast<int>(Stage::kPyramid)] += t_valid - t_scaled;  // valid mask (and BA apply)
   if (occluder_pixels >= 0) r.times_ms[static_cast<int>(Stage::kOccluder)] = t_occluder - t_valid;
   r.occluder_pixels = occluder_pixels;
   r.occluder_refused = occluder_refused;
@@ -248,6 +302,7 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
   r.calibration_suspect = ba_.calibration().suspect;
   r.calibration_focal_scale = static_cast<float>(ba_.calibration().focal_scale);
   if (config_.now_ns) r.times_ms[static_cast<int>(Stage::kTotal)] = now_ms() - t0;
+  if (scaling_) to_input_pixels(input_px_per_working_px_, &r);
   return r;
 }
 
@@ -344,6 +399,7 @@ void Tracker::stop() {
 
 int Tracker::raster_triangles() const { return impl_ ? impl_->raster_triangles() : 0; }
 CalibrationCheck Tracker::calibration_check() const { return impl_ ? impl_->calibration_check() : CalibrationCheck{}; }
+CameraModel Tracker::working_camera() const { return impl_ ? impl_->working_camera() : CameraModel{}; }
 
 int Tracker::map_points(Vec3* p_model, int capacity) const {
   if (!impl_) return 0;

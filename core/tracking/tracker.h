@@ -35,7 +35,7 @@ enum class TrackState : std::uint8_t {
 const char* to_string(TrackState s);
 
 // Stage timings of one step, milliseconds (0 where the stage did not run).
-enum class Stage : int { kPyramid, kOccluder, kRaster, kDetect, kDescribe, kMatch, kPose, kMap, kReloc, kContour, kTotal, kCount };
+enum class Stage : int { kScale, kPyramid, kOccluder, kRaster, kDetect, kDescribe, kMatch, kPose, kMap, kReloc, kContour, kTotal, kCount };
 const char* to_string(Stage s);
 using StageTimes = std::array<double, static_cast<int>(Stage::kCount)>;
 
@@ -44,6 +44,15 @@ using StageTimes = std::array<double, static_cast<int>(Stage::kCount)>;
 // (core/tracking/tracker_settings.h) names each key, its range and meaning.
 struct TrackerConfig {
   int width = 0, height = 0;       // frame size = calibration size
+  // The tracker's own frame width (the working resolution): a wider frame
+  // is brought down to it by an area filter (core/image/area_scale.h), the
+  // height in proportion, the calibration scaled with it; 0: the frame's
+  // own. Every pixel setting below is in working pixels; the poses are the
+  // same either way, and TrackResult's pixel figures are the frame's.
+  // 1280: the 1280x720 that the tracker's settings were measured at, and
+  // the speed the tower's 1080p60 and 4K60 need (docs/results.md,
+  // "Working resolution").
+  int working_width = 1280;
   // The ORB frontend (core/features/orb_extractor.h). The tracker's defaults
   // differ from the extractor's own in two places:
   // - organ_margin_px -4: the organ mask is eroded a little, since the prior
@@ -265,6 +274,14 @@ struct TrackerConfig {
 // or --set can get wrong. The message names the setting.
 Status validate_tracker_settings(const TrackerConfig& config);
 
+// The tracker's working resolution for a frame of width x height
+// (TrackerConfig::working_width): the frame's own size, or working_width
+// wide with the height in proportion (rounded).
+struct WorkingSize {
+  int width = 0, height = 0;
+};
+WorkingSize working_size(int width, int height, int working_width);
+
 struct TrackResult {
   TrackState state = TrackState::kLost;
   bool pose_valid = false;        // true for kInitialised, kTracking, kRelocalised
@@ -360,6 +377,11 @@ class Tracker {
   int raster_triangles() const;
   // The calibration test so far (default values before configure()).
   CalibrationCheck calibration_check() const;
+  // The camera at the working resolution (TrackerConfig::working_width):
+  // the calibration given to configure(), scaled when the tracker works
+  // at a smaller size. The mapping side's bundle adjustment works in these
+  // pixels. Default before configure().
+  CameraModel working_camera() const;
 
  private:
   TrackerImpl* impl_ = nullptr;  // allocated in configure()

@@ -25,6 +25,7 @@
 #include "core/features/feature_set.h"
 #include "core/motion/image_motion.h"
 #include "core/mapping/map.h"
+#include "core/image/area_scale.h"
 #include "core/image/occluder_mask.h"
 #include "core/features/orb_extractor.h"
 #include "core/features/orb_matcher.h"
@@ -51,6 +52,7 @@ class TrackerImpl {
   const TrackingMap& map() const { return map_; }
   int raster_triangles() const { return raster_.triangle_count(); }
   const CalibrationCheck& calibration_check() const { return ba_.calibration(); }
+  const CameraModel& working_camera() const { return camera_; }
   void set_ba_channel(BaChannel* channel) { ba_.set_channel(channel); }
 
  private:
@@ -90,8 +92,15 @@ class TrackerImpl {
   double now_ms() const;
   void lap(Stage s, double* t_last_ms, TrackResult* r) const;
 
-  TrackerConfig config_;
-  CameraModel camera_;
+  TrackerConfig config_;  // at the working resolution (TrackerConfig::working_width)
+  CameraModel camera_;    // likewise
+  // The frame as it comes (the calibration's size) and its way to the
+  // working resolution, when that is smaller.
+  int input_width_ = 0, input_height_ = 0;
+  double input_px_per_working_px_ = 1.0;
+  bool scaling_ = false;
+  AreaScaler luma_scaler_, chroma_scaler_;
+  Image<std::uint8_t> work_y_, work_u_, work_v_;
   Pinhole K_;
   bool distorted_ = false;
   SE3 T_init_;

@@ -16,6 +16,7 @@ const char* to_string(TrackState s) {
 
 const char* to_string(Stage s) {
   switch (s) {
+    case Stage::kScale: return "scale";
     case Stage::kPyramid: return "pyramid";
     case Stage::kOccluder: return "occluder";
     case Stage::kRaster: return "raster";

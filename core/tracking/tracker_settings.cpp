@@ -36,6 +36,8 @@ constexpr double kMaxMeshTrianglesD = static_cast<double>(kMaxMeshTriangles);
 // accept (a narrower one where a wider value makes no sense: a FAST cell
 // larger than a frame, a time limit of hours).
 const std::array kKeys = {
+    ST_SETTING(working_width, 0, kMaxImageWidth,
+               "the tracker's frame width: a wider frame is brought down to it, the height in proportion (0: the frame's)"),
     // The ORB frontend (core/features/orb_extractor.h).
     ST_SETTING(features.n_features, 50, kMaxKeypoints, "keypoints a frame, over all pyramid levels"),
     ST_SETTING(features.levels, 1, kMaxPyramidLevels, "pyramid levels"),

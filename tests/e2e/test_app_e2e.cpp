@@ -411,6 +411,29 @@ TEST_CASE(
   CHECK(refined.tre_median_px < 0.5 * kept.tre_median_px);
 }
 
+TEST_CASE("app_e2e: 1080p input is tracked at the 1280x720 working size, poses as accurate in the input's pixels" *
+          doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
+  const auto dir = test::scratch_dir("app_e2e_working_size");
+  simulate(dir / "seq", 60, "1920x1080", 3);
+  const EvalReport working = track_evaluate(dir, kDeterministic);
+  CHECK(summary_number(dir / "out", "width") == 1920);
+  CHECK(summary_number(dir / "out", "working_width") == 1280);
+  CHECK(summary_number(dir / "out", "working_height") == 720);
+  CHECK(summary_number(dir / "out", "stage_scale_mean_ms") > 0);
+  CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);
+  CHECK(summary_number(dir / "out", "occluder_mask_frames") == 60);  // the chroma is scaled too
+  const EvalResult native = track_control(dir, " --set working_width=0", "at the frames' own 1920x1080");
+  CHECK(summary_number(dir / "control", "working_width") == 1920);
+  CHECK(summary_number(dir / "control", "tracking_thread_allocations") == 0);
+  // The evaluation projects the markers with the sequence's own (1080p)
+  // calibration: a working camera scaled wrong would show here.
+  CHECK(working.result.init_ok);
+  CHECK(working.result.lost_pct == 0.0);
+  CHECK(working.result.wrong_pct == 0.0);
+  CHECK(working.result.tre_median_px < 1.5);
+  CHECK(working.result.tre_mean_px < 1.25 * native.tre_mean_px + 0.1);
+}
+
 TEST_CASE("app_e2e: 200 simulated frames replay with zero heap allocations on the tracking thread" *
           doctest::timeout(test::budget_s(300)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_alloc");

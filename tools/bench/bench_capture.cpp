@@ -1,6 +1,10 @@
 // Stage "capture": Y4mReader::read_frame() on a 1280x720 4:2:0 video in
 // the page cache (the tracker's per-frame input cost), against a bare
 // ::read() of the same bytes into one buffer (the syscall + copy floor).
+// Rows "scale": the tracker's working resolution, AreaScaler on a 4:2:0
+// frame from the tower (1080p, 4K) to 1280x720, luma and chroma, cycling
+// over 8 frames so that the input comes from memory as a captured frame
+// does; OpenCV's INTER_AREA resize on the same planes as the baseline.
 // Row "mesh load" times parse_ply + validate_and_orient of the real CT liver
 // (20k triangles): a start-up cost, shown for scale.
 #include <cstdio>
@@ -9,7 +13,10 @@
 #include <unistd.h>
 #include <vector>
 
+#include <opencv2/imgproc.hpp>
+
 #include "bench.h"
+#include "core/image/area_scale.h"
 #include "core/formats/mesh_io.h"
 #include "hal/storage/file_io.h"
 #include "hal/capture/y4m_reader.h"
@@ -68,6 +75,45 @@ std::vector<double> time_raw_read(const std::filesystem::path& p, std::size_t fr
   return ms;
 }
 
+Row bench_scale(const Options& opt, int in_w, int in_h, int out_w, int out_h) {
+  constexpr int kFrames = 8;
+  std::vector<Image<std::uint8_t>> y, u, v;
+  for (int f = 0; f < kFrames; ++f) {
+    y.emplace_back(in_w, in_h);
+    u.emplace_back(in_w / 2, in_h / 2);
+    v.emplace_back(in_w / 2, in_h / 2);
+    for (int r = 0; r < in_h; ++r)
+      for (int c = 0; c < in_w; ++c) y.back()(c, r) = static_cast<std::uint8_t>((c * 7 + r * 3 + f * 11) & 255);
+    u.back().fill(120);
+    v.back().fill(140);
+  }
+  AreaScaler sy, sc;
+  Image<std::uint8_t> oy(out_w, out_h), ou(out_w / 2, out_h / 2), ov(out_w / 2, out_h / 2);
+  Row row{"scale " + std::to_string(in_w) + "x" + std::to_string(in_h) + " -> " + std::to_string(out_w) + "x" +
+              std::to_string(out_h) + " 4:2:0",
+          {}, "cv::resize INTER_AREA", {}, ""};
+  if (!sy.configure(in_w, in_h, out_w, out_h).ok() || !sc.configure(in_w / 2, in_h / 2, out_w / 2, out_h / 2).ok())
+    return row;
+  cv::Mat ry, ru, rv;
+  const auto mat = [](Image<std::uint8_t>& i) { return cv::Mat(i.height(), i.width(), CV_8U, i.data()); };
+  const int n = opt.iterations > 0 ? opt.iterations : 200;
+  for (int i = 0; i < n; ++i) {
+    const auto f = static_cast<std::size_t>(i % kFrames);
+    double t0 = now_ms();
+    sy.scale(y[f].cview(), oy.view());
+    sc.scale(u[f].cview(), ou.view());
+    sc.scale(v[f].cview(), ov.view());
+    row.samples_ms.push_back(now_ms() - t0);
+    const auto g = static_cast<std::size_t>((i + kFrames / 2) % kFrames);
+    t0 = now_ms();
+    cv::resize(mat(y[g]), ry, cv::Size(out_w, out_h), 0, 0, cv::INTER_AREA);
+    cv::resize(mat(u[g]), ru, cv::Size(out_w / 2, out_h / 2), 0, 0, cv::INTER_AREA);
+    cv::resize(mat(v[g]), rv, cv::Size(out_w / 2, out_h / 2), 0, 0, cv::INTER_AREA);
+    row.baseline_ms.push_back(now_ms() - t0);
+  }
+  return row;
+}
+
 int run_capture(const Options& opt) {
   const int frames = opt.iterations > 0 ? opt.iterations : 200;
   const auto path = std::filesystem::temp_directory_path() / ("scopetrack-bench-capture-" + std::to_string(::getpid()) + ".y4m");
@@ -80,6 +126,8 @@ int run_capture(const Options& opt) {
   row.baseline_ms = time_raw_read(path, static_cast<std::size_t>(kWidth) * kHeight * 3 / 2);
   report(opt, row);
   std::filesystem::remove(path);
+  report(opt, bench_scale(opt, 1920, 1080, 1280, 720));
+  report(opt, bench_scale(opt, 3840, 2160, 1280, 720));
 
   const auto liver = std::filesystem::path(opt.shared_dir) / "data/liver/liver.ply";
   Result<std::string> bytes = read_file(liver, 1 << 30);
@@ -100,6 +148,6 @@ int run_capture(const Options& opt) {
 
 }  // namespace
 
-SCOPETRACK_BENCH_STAGE("capture", "Y4M frame read (1280x720) and mesh load", run_capture);
+SCOPETRACK_BENCH_STAGE("capture", "Y4M frame read (1280x720), scaling to the working size, mesh load", run_capture);
 
 }  // namespace st::bench

@@ -149,8 +149,11 @@ Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, cons
   auto tracker = std::make_unique<Tracker>();
   const CameraModel cam(seq.config.K, seq.config.distortion);
   if (Status s = tracker->configure(cfg, seq.mesh, cam, seq.config.T_camera_model_init); !s) return Error{s.message()};
+  const Pinhole working = tracker->working_camera().pinhole();
   info(opt, "mesh " + std::to_string(seq.mesh.triangle_count()) + " triangles, rendered every frame as " +
-                std::to_string(tracker->raster_triangles()));
+                std::to_string(tracker->raster_triangles()) + "; frames " + std::to_string(cfg.width) + "x" +
+                std::to_string(cfg.height) + " tracked at " + std::to_string(working.width) + "x" +
+                std::to_string(working.height));
   TrackRun run;
   run.raster_triangles = tracker->raster_triangles();
   Y4mReader reader;

@@ -74,6 +74,12 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
   c.raster_downscale = 3;
   rejects(c, "raster_downscale");
   c = good;
+  c.working_width = -1;
+  rejects(c, "working_width");
+  c = good;
+  c.working_width = seq.K.width / 10;  // more than 8x down
+  rejects(c, "working_width");
+  c = good;
   c.min_inliers = 2;
   rejects(c, "min_inliers");
   // One field set to a bad value, the rest good: refused, naming the field.
@@ -112,6 +118,32 @@ TEST_CASE("tracker: configure rejects bad configs with clear errors") {
   c.registration_sigma_deg = 1.0;  // both set: the registration refined
   c.registration_sigma_mm = 2.0;
   CHECK(t.configure(c, seq.mesh, cam, seq.T_camera_model[0]).ok());
+  {
+    // A 1080p calibration at the default working width: the camera the
+    // tracker works with is the same lens at 1280x720 (pixel centres at
+    // integers: x' = (x + 0.5) 2/3 - 0.5).
+    TrackerConfig hd = good;
+    hd.width = 1920;
+    hd.height = 1080;
+    const Pinhole K{1500.0, 1470.0, 959.5, 539.5, 1920, 1080};
+    Tracker t_hd;
+    REQUIRE(t_hd.configure(hd, seq.mesh, CameraModel(K, Distortion{}), seq.T_camera_model[0]).ok());
+    const Pinhole w = t_hd.working_camera().pinhole();
+    CHECK(w.width == 1280);
+    CHECK(w.height == 720);
+    CHECK(w.fx == doctest::Approx(1000.0));
+    CHECK(w.fy == doctest::Approx(980.0));
+    CHECK(w.cx == doctest::Approx(639.5));
+    CHECK(w.cy == doctest::Approx(359.5));
+    hd.working_width = 0;
+    REQUIRE(t_hd.configure(hd, seq.mesh, CameraModel(K, Distortion{}), seq.T_camera_model[0]).ok());
+    CHECK(t_hd.working_camera().pinhole().width == 1920);
+    CHECK(t_hd.working_camera().pinhole().cx == doctest::Approx(959.5));
+    // Frames of the calibration's size only; the working size's are refused.
+    Image<std::uint8_t> small(1280, 720);
+    t_hd.start();
+    CHECK_FALSE(t_hd.step(small.cview(), 0).pose_valid);
+  }
   Pinhole bad = seq.K;
   bad.fx = -1;
   CHECK_FALSE(t.configure(good, seq.mesh, CameraModel(bad, Distortion{}), seq.T_camera_model[0]).ok());
