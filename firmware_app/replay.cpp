@@ -28,6 +28,10 @@ Result<RunStats> run_replay(const LoadedSequence& sequence, FrameProcessor& proc
     return make_error("video " + sequence.video_path.string() + " is " + std::to_string(h.width) + "x" +
                       std::to_string(h.height) + " but sequence.yaml calibrates " +
                       std::to_string(sequence.config.width) + "x" + std::to_string(sequence.config.height));
+  if (options.working_width > 0 && options.working_height > 0) {
+    if (Status s = capture->set_working_size(options.working_width, options.working_height); !s)
+      return Error{"capture at the working size: " + s.message()};
+  }
   auto writer = std::make_unique<RunWriter>();
   if (Status s = writer->open(options.out_dir); !s) return Error{s.message()};
 

@@ -25,6 +25,10 @@ struct ReplayOptions {
   bool realtime = false;   // pace frames to the sequence's fps; else as fast as possible
   bool progress = false;   // progress line on stderr (the caller checks isatty)
   int ring_slots = 6;      // capture ring: frames queued or in use at once
+  // The tracker's working size (TrackerProcessor::working_pinhole): when
+  // smaller than the video's, the capture thread makes each frame at it
+  // too (FrameRef::y_work). 0: not made.
+  int working_width = 0, working_height = 0;
   FrameObserver* observer = nullptr;  // optional, called on the tracking thread
   // Optional: set to a signal number by another thread to end the replay
   // after the current frame (FrameLoop::stop_signal); what was tracked is

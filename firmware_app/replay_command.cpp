@@ -235,6 +235,8 @@ int run_replay(Args argv) {
                        {"check_calibration", tc.check_calibration ? 1.0 : 0.0},
                        {"max_map_points", tc.max_map_points}, {"max_keyframes", tc.max_keyframes},
                        {"width", c.width}, {"height", c.height}};
+  opt.working_width = processor->working_pinhole().width;
+  opt.working_height = processor->working_pinhole().height;
   auto stats = run_replay(seq.value(), *processor, opt);
   if (!stats) {
     std::fprintf(stderr, "scopetrack: %s\n", stats.message().c_str());

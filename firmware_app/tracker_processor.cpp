@@ -35,7 +35,10 @@ void TrackerProcessor::stop() {
 }
 
 TrackResult TrackerProcessor::step(const FrameRef& frame) {
-  const TrackResult r = tracker_.step(frame.y, frame.index, ChromaView{frame.u, frame.v});
+  // The capture's working-size copy when it made one (the tracker takes a
+  // frame of either size).
+  const TrackResult r = frame.y_work.empty() ? tracker_.step(frame.y, frame.index, ChromaView{frame.u, frame.v})
+                                             : tracker_.step(frame.y_work, frame.index, ChromaView{frame.u_work, frame.v_work});
   for (std::size_t i = 0; i < stage_sum_ms_.size(); ++i) {
     if (r.times_ms[i] <= 0.0) continue;  // the stage did not run
     stage_sum_ms_[i] += r.times_ms[i];

@@ -259,12 +259,15 @@ void TrackerImpl::start() {
 TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma) {
   TrackResult r;
   const double t0 = now_ms();
-  if (!started_ || luma.empty() || luma.width != input_width_ || luma.height != input_height_) {
+  // The frame at its own size, or already at the working size (a capture
+  // that scales it, Y4mCapture::set_working_size).
+  const bool at_working = scaling_ && luma.width == config_.width && luma.height == config_.height;
+  if (!started_ || luma.empty() || (!at_working && (luma.width != input_width_ || luma.height != input_height_))) {
     r.map_points = map_.point_count();
     r.keyframes = map_.keyframe_count();
     return r;  // defined degraded state: lost, no pose
   }
-  if (scaling_) {
+  if (scaling_ && !at_working) {
     luma_scaler_.scale(luma, work_y_.view());
     luma = work_y_.cview();
     if (!chroma.empty() && chroma_scaler_.scale(chroma.u, work_u_.view()) && chroma_scaler_.scale(chroma.v, work_v_.view()))
@@ -289,7 +292,7 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
   } else {
     r = track(luma, frame_index);
   }
-  if (scaling_) r.times_ms[static_cast<int>(Stage::kScale)] = t_scaled - t0;
+  if (scaling_ && !at_working) r.times_ms[static_cast<int>(Stage::kScale)] = t_scaled - t0;
   r.times_ms[static_cast<int>(Stage::kPyramid)] += t_valid - t_scaled;  // valid mask (and BA apply)
   if (occluder_pixels >= 0) r.times_ms[static_cast<int>(Stage::kOccluder)] = t_occluder - t_valid;
   r.occluder_pixels = occluder_pixels;

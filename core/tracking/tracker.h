@@ -363,7 +363,9 @@ class Tracker {
   // One frame: luma (Y plane, distorted image as captured, width x height)
   // and, optionally, its 4:2:0 chroma for the occluder mask
   // (TrackerConfig::use_occluder_mask); empty chroma, or planes of another
-  // size: no occluder mask. Allocates nothing.
+  // size: no occluder mask. When the tracker works at a smaller size
+  // (working_camera()), a frame already brought to that size (by the
+  // capture) is taken as it is. Allocates nothing.
   TrackResult step(GrayView luma, int frame_index, ChromaView chroma = {});
   void stop();
 

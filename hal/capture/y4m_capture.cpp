@@ -19,6 +19,37 @@ Status Y4mCapture::open(const std::filesystem::path& video, int ring_slots, doub
   return Status::Ok();
 }
 
+Status Y4mCapture::set_working_size(int width, int height) {
+  if (thread_.joinable()) return make_error("the Y4M capture's working size is set before it starts");
+  const Y4mHeader& h = reader_.header();
+  scaling_ = false;
+  if (width == h.width && height == h.height) return Status::Ok();
+  if (Status s = luma_scaler_.configure(h.width, h.height, width, height); !s) return s;
+  const bool chroma = h.chroma != Chroma::kMono;
+  if (chroma) {
+    if (Status s = chroma_scaler_.configure((h.width + 1) / 2, (h.height + 1) / 2, (width + 1) / 2, (height + 1) / 2); !s)
+      return s;
+  }
+  const auto slots = static_cast<std::size_t>(ring_slots_);
+  work_y_.assign(slots, Image<std::uint8_t>(width, height));
+  work_u_.assign(chroma ? slots : 0, Image<std::uint8_t>((width + 1) / 2, (height + 1) / 2));
+  work_v_ = work_u_;
+  scaling_ = true;
+  return Status::Ok();
+}
+
+// Frame number frame's working-size copy, into its ring slot's buffers.
+void Y4mCapture::scale_to_working(std::uint32_t frame, FrameRef* f) {
+  const std::size_t slot = frame % ring_slots_;
+  luma_scaler_.scale(f->y, work_y_[slot].view());
+  f->y_work = work_y_[slot].cview();
+  if (!work_u_.empty() && chroma_scaler_.scale(f->u, work_u_[slot].view()) &&
+      chroma_scaler_.scale(f->v, work_v_[slot].view())) {
+    f->u_work = work_u_[slot].cview();
+    f->v_work = work_v_[slot].cview();
+  }
+}
+
 Status Y4mCapture::start() {
   if (thread_.joinable()) return make_error("the Y4M capture is already running");
   thread_ = std::thread([this] { run(); });
@@ -71,6 +102,7 @@ void Y4mCapture::run() {
       msg.kind = SourceFrame::Kind::kError;
     } else {
       msg.kind = SourceFrame::Kind::kFrame;
+      if (scaling_) scale_to_working(i, &msg.frame);
       if (pace_fps_ > 0)
         platform::sleep_until_ns(t0_ns + static_cast<std::int64_t>(static_cast<double>(i) * 1e9 / pace_fps_));
     }

@@ -6,9 +6,15 @@
 // from next() until release(). With pacing (pace_fps > 0), frame i is
 // handed over at start + i / pace_fps, like a camera.
 //
-// Threads: open()/start()/stop() on the owner; next()/release() on the one
-// consumer (the tracking thread), which allocate nothing and never touch
-// the file. The capture thread allocates nothing after open().
+// With set_working_size(), the capture thread also brings each frame to
+// the tracker's working size (core/image/area_scale.h) into buffers of the
+// same ring: the tracking thread then starts from the small frame, and
+// the full one stays for the texture thread and the console.
+//
+// Threads: open()/set_working_size()/start()/stop() on the owner;
+// next()/release() on the one consumer (the tracking thread), which
+// allocate nothing and never touch the file. The capture thread allocates
+// nothing after open() and set_working_size().
 #pragma once
 
 #include <atomic>
@@ -16,7 +22,9 @@
 #include <filesystem>
 #include <string>
 #include <thread>
+#include <vector>
 
+#include "core/image/area_scale.h"
 #include "hal/capture/frame_source.h"
 #include "hal/capture/y4m_reader.h"
 #include "platform/spsc_queue.h"
@@ -35,6 +43,10 @@ class Y4mCapture final : public FrameSource {
   // fps: the stream's rate, for the frames' timestamps (0: unknown, all 0).
   // pace_fps > 0: hand frame i over no earlier than start + i / pace_fps.
   Status open(const std::filesystem::path& video, int ring_slots, double fps, double pace_fps);
+  // After open(), before start(): frames also at width x height (at most
+  // the video's size; the video's own size: nothing is made). Allocates
+  // the ring's working buffers.
+  Status set_working_size(int width, int height);
   const Y4mHeader& header() const { return reader_.header(); }
   int frames_read() const { return reader_.frames_read(); }
 
@@ -55,6 +67,7 @@ class Y4mCapture final : public FrameSource {
     std::int64_t t_handoff_ns = 0;
   };
   void run();
+  void scale_to_working(std::uint32_t frame, FrameRef* f);
   bool wait_for_free_slot(std::uint32_t frame);  // false: stop() was asked
 
   static constexpr std::size_t kQueueCapacity = 128;  // > kMaxRingSlots + the end marker
@@ -66,6 +79,10 @@ class Y4mCapture final : public FrameSource {
   double fps_ = 0, pace_fps_ = 0;
   std::string error_;  // written by the capture thread before it queues kError
   std::thread thread_;
+  // The working size's scalers (capture thread) and one frame per ring slot.
+  bool scaling_ = false;
+  AreaScaler luma_scaler_, chroma_scaler_;
+  std::vector<Image<std::uint8_t>> work_y_, work_u_, work_v_;
 };
 
 }  // namespace st

@@ -22,6 +22,9 @@ struct FrameRef {
   int index = -1;                      // 0-based frame number in the stream
   ImageView<const std::uint8_t> y;     // luma, width x height
   ImageView<const std::uint8_t> u, v;  // 4:2:0 chroma (half size, rounded up); empty for mono
+  // The same frame at the tracker's working size, when the source made it
+  // (Y4mCapture::set_working_size); empty otherwise.
+  ImageView<const std::uint8_t> y_work, u_work, v_work;
 };
 
 enum class ReadResult { kFrame, kEndOfStream, kError };

@@ -13,15 +13,25 @@
 #include <string>
 #include <vector>
 
+#include "core/image/area_scale.h"
 #include "firmware_app/frame_loop.h"
 #include "hal/capture/y4m_capture.h"
 #include "hal/storage/y4m_writer.h"
 #include "platform/clock.h"
+#include "support/alloc_guard.h"
 #include "support/support.h"
 
 using namespace st;
 
 namespace {
+
+// A 4:2:0 video of width x height at path, opened for writing.
+void open_video(Y4mWriter* w, const std::filesystem::path& path, int width, int height) {
+  Y4mHeader h;
+  h.width = width;
+  h.height = height;
+  REQUIRE(w->open(path, h).ok());
+}
 
 // frames frames of a 8x8 image, then kEnd or kError; t_ready_ns = now.
 class ScriptedSource final : public FrameSource {
@@ -145,10 +155,7 @@ TEST_CASE("frame loop: a source read as fast as possible counts latency from whe
 TEST_CASE("y4m capture: stop() ends a capture that waits for its ring, and the stream ends cleanly") {
   const auto dir = test::scratch_dir("y4m_capture_stop");
   Y4mWriter w;
-  Y4mHeader h;
-  h.width = 16;
-  h.height = 8;
-  REQUIRE(w.open(dir / "v.y4m", h).ok());
+  open_video(&w, dir / "v.y4m", 16, 8);
   Image<std::uint8_t> Y(16, 8), U(8, 4), V(8, 4);
   for (int f = 0; f < 20; ++f) REQUIRE(w.write(Y.cview(), U.cview(), V.cview()).ok());
   REQUIRE(w.close().ok());
@@ -183,4 +190,77 @@ TEST_CASE("y4m capture: stop() ends a capture that waits for its ring, and the s
   CHECK(f.kind == SourceFrame::Kind::kEnd);
   CHECK(frames == 20);
   whole.stop();
+}
+
+TEST_CASE("y4m capture: each frame also at the tracker's working size, made on the capture thread") {
+  const auto dir = test::scratch_dir("y4m_capture_working");
+  Y4mWriter w;
+  open_video(&w, dir / "v.y4m", 96, 54);
+  std::vector<Image<std::uint8_t>> Y, U, V;
+  for (int f = 0; f < 6; ++f) {
+    Y.emplace_back(96, 54);
+    U.emplace_back(48, 27);
+    V.emplace_back(48, 27);
+    for (int y = 0; y < 54; ++y)
+      for (int x = 0; x < 96; ++x) Y.back()(x, y) = static_cast<std::uint8_t>((x * 5 + y * 3 + f * 17) & 255);
+    for (int y = 0; y < 27; ++y)
+      for (int x = 0; x < 48; ++x) {
+        U.back()(x, y) = static_cast<std::uint8_t>(100 + ((x + f) % 9) * 5);
+        V.back()(x, y) = static_cast<std::uint8_t>(160 - ((y + f) % 7) * 6);
+      }
+    REQUIRE(w.write(Y.back().cview(), U.back().cview(), V.back().cview()).ok());
+  }
+  REQUIRE(w.close().ok());
+  // What the capture must hand over: the area filter of each plane.
+  AreaScaler luma, chroma;
+  REQUIRE(luma.configure(96, 54, 64, 36).ok());
+  REQUIRE(chroma.configure(48, 27, 32, 18).ok());
+  const auto same = [](GrayView a, const Image<std::uint8_t>& b) {
+    if (a.width != b.width() || a.height != b.height()) return false;
+    for (int y = 0; y < a.height; ++y)
+      for (int x = 0; x < a.width; ++x)
+        if (a(x, y) != b(x, y)) return false;
+    return true;
+  };
+
+  Y4mCapture capture;
+  REQUIRE(capture.open(dir / "v.y4m", 3, 25.0, 0.0).ok());
+  CHECK_FALSE(capture.set_working_size(128, 54).ok());  // larger than the video
+  REQUIRE(capture.set_working_size(64, 36).ok());
+  REQUIRE(capture.start().ok());
+  CHECK_FALSE(capture.set_working_size(48, 27).ok());  // not while running
+  SourceFrame f;
+  int frames = 0;
+  bool all_same = true, full_kept = true;
+  Image<std::uint8_t> y(64, 36), u(32, 18), v(32, 18);
+  const test::AllocationCounter counter;
+  for (;;) {
+    capture.next(&f);
+    if (f.kind != SourceFrame::Kind::kFrame) break;
+    const auto k = static_cast<std::size_t>(f.frame.index);
+    luma.scale(Y[k].cview(), y.view());
+    chroma.scale(U[k].cview(), u.view());
+    chroma.scale(V[k].cview(), v.view());
+    all_same = all_same && same(f.frame.y_work, y) && same(f.frame.u_work, u) && same(f.frame.v_work, v);
+    full_kept = full_kept && same(f.frame.y, Y[k]) && same(f.frame.u, U[k]);
+    ++frames;
+    capture.release();
+  }
+  const std::uint64_t allocations = counter.count();
+  capture.stop();
+  CHECK(frames == 6);
+  CHECK(all_same);
+  CHECK(full_kept);
+  CHECK(allocations == 0);  // next() and release() on the tracking thread
+
+  Y4mCapture own_size;  // the video's own size: nothing made
+  REQUIRE(own_size.open(dir / "v.y4m", 2, 25.0, 0.0).ok());
+  REQUIRE(own_size.set_working_size(96, 54).ok());
+  REQUIRE(own_size.start().ok());
+  own_size.next(&f);
+  REQUIRE(f.kind == SourceFrame::Kind::kFrame);
+  CHECK(f.frame.y_work.empty());
+  CHECK(f.frame.y.width == 96);
+  own_size.release();
+  own_size.stop();
 }
