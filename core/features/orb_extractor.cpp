@@ -626,7 +626,7 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
   stats_ = OrbFrameStats{};
   for (GrayView m : {organ_mask, valid_mask})
     if (m.width > kMaxImageWidth || m.height > kMaxImageHeight) return false;
-  if (!pyramid_.build_levels(image)) return false;  // smoothing: per level, kept patches only
+  if (!pyramid_.build_levels(image, config_.denoise)) return false;  // smoothing: per level, kept patches only
   out.width = width_;
   out.height = height_;
   prepare_masks(organ_mask, valid_mask);

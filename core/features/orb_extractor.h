@@ -60,6 +60,10 @@ struct OrbConfig {
   // the default keeps repeatability; the relaxed-threshold cells still give
   // weak areas some corners.
   int spread_cell_keypoints = 400;
+  // Detect and describe on the frame through a 3x3 binomial filter
+  // (ImagePyramid::build_levels): sensor noise and compression blocks make
+  // corners of their own that no other frame repeats.
+  bool denoise = false;
 };
 
 // Per-frame result counters (diagnostics; no allocation).

@@ -142,6 +142,7 @@ Status ImagePyramid::configure(int width, int height, int levels, float scale_fa
   }
   row_tmp_.assign(static_cast<std::size_t>(width) + 16, 0);
   blur_tmp_.assign(static_cast<std::size_t>(width) + 16, 0);
+  denoise_row_.assign(static_cast<std::size_t>(width) + 16, 0);
   return Status::Ok();
 }
 
@@ -209,13 +210,55 @@ void ImagePyramid::horizontal_blend(const std::uint16_t* tmp, const ResizeTables
   }
 }
 
-bool ImagePyramid::build_levels(GrayView image) {
+bool ImagePyramid::build_levels(GrayView image, bool denoise) {
   if (image.empty() || image.width != width_ || image.height != height_) return false;
   const ImageView<std::uint8_t> l0 = levels_img_[0].view();
-  for (int y = 0; y < height_; ++y)
-    std::memcpy(l0.row(y), image.row(y), static_cast<std::size_t>(width_));
+  if (denoise) {
+    denoise_level0(image);
+  } else {
+    for (int y = 0; y < height_; ++y)
+      std::memcpy(l0.row(y), image.row(y), static_cast<std::size_t>(width_));
+  }
   for (int k = 1; k < levels_; ++k) resize_level(k);
   return true;
+}
+
+// Level 0 = image through [1 2 1]^T [1 2 1] / 16, rounded, edges
+// replicated: per row the vertical sums (at most 1020) into denoise_row_
+// with one replicated column each side, then the horizontal pass.
+void ImagePyramid::denoise_level0(GrayView image) {
+  const ImageView<std::uint8_t> l0 = levels_img_[0].view();
+  std::uint16_t* v = denoise_row_.data() + 1;  // v[-1] and v[width_] are the edge columns
+  const int w = width_;
+  for (int y = 0; y < height_; ++y) {
+    const std::uint8_t* a = image.row(std::max(0, y - 1));
+    const std::uint8_t* b = image.row(y);
+    const std::uint8_t* c = image.row(std::min(height_ - 1, y + 1));
+    int x = 0;
+#if CV_SIMD128
+    for (; x + 8 <= w; x += 8) {
+      const cv::v_uint16x8 vb = cv::v_load_expand(b + x);
+      cv::v_store(v + x, cv::v_add_wrap(cv::v_add_wrap(cv::v_load_expand(a + x), cv::v_load_expand(c + x)),
+                                        cv::v_add_wrap(vb, vb)));
+    }
+#endif
+    for (; x < w; ++x) v[x] = static_cast<std::uint16_t>(a[x] + 2 * b[x] + c[x]);
+    v[-1] = v[0];
+    v[w] = v[w - 1];
+    std::uint8_t* o = l0.row(y);
+    x = 0;
+#if CV_SIMD128
+    const cv::v_uint16x8 eight = cv::v_setall_u16(8);
+    for (; x + 8 <= w; x += 8) {
+      const cv::v_uint16x8 m = cv::v_load(v + x);
+      // At most 4 * 1020 + 8: fits 16 bits.
+      const cv::v_uint16x8 sum = cv::v_add_wrap(cv::v_add_wrap(cv::v_load(v + x - 1), cv::v_load(v + x + 1)),
+                                                cv::v_add_wrap(cv::v_add_wrap(m, m), eight));
+      cv::v_pack_store(o + x, cv::v_shr<4>(sum));
+    }
+#endif
+    for (; x < w; ++x) o[x] = static_cast<std::uint8_t>((v[x - 1] + 2 * v[x] + v[x + 1] + 8) >> 4);
+  }
 }
 
 bool ImagePyramid::build(GrayView image) {

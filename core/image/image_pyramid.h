@@ -27,7 +27,9 @@ class ImagePyramid {
   bool build(GrayView image);
   // The levels only, without smoothing: smoothed(k) is then valid only in
   // the tiles passed to smooth_tiles() afterwards. Allocates nothing.
-  bool build_levels(GrayView image);
+  // denoise: level 0 is the image through a 3x3 binomial filter ([1 2 1]
+  // across and down, / 16, edges replicated), and every level with it.
+  bool build_levels(GrayView image, bool denoise = false);
   // Smooths the kSmoothTilePx x kSmoothTilePx tiles of level k whose byte in
   // tiles (tiles_x per row) is non-zero; bit-identical to the whole-level
   // smoothing of build() there. Allocates nothing.
@@ -65,6 +67,8 @@ class ImagePyramid {
   std::array<float, kMaxPyramidLevels> scale_{};
   std::vector<std::uint16_t> row_tmp_;  // one vertically blended row (resize)
   std::vector<std::uint8_t> blur_tmp_;  // one vertically blurred row + padding (smoothing)
+  std::vector<std::uint16_t> denoise_row_;  // one row's [1 2 1] vertical sums, an edge column each side
+  void denoise_level0(GrayView image);
   int levels_ = 0;
   int width_ = 0;
   int height_ = 0;

@@ -65,6 +65,10 @@ struct TrackerConfig {
   //   where the contour was. On smooth tissue such keypoints are a large
   //   share and the map drifts until tracking is lost
   //   (docs/design-notes.md, "The organ's outline").
+  // features.denoise (keypoints from the frame through a 3x3 binomial
+  // filter) stays off: it halves the losses of noisy smooth tissue and
+  // breaks photo-textured tissue at 640x360 (docs/results.md, "Denoised
+  // keypoints").
   OrbConfig features = [] {
     OrbConfig c;
     c.organ_margin_px = -4;

@@ -49,6 +49,7 @@ const std::array kKeys = {
     ST_SETTING(features.edge_border_px, 16, 64, "no keypoint closer to a level's edge, level pixels"),
     ST_SETTING(features.organ_margin_px, -256, 256,
                "organ mask margin, level-0 pixels: > 0 dilates, < 0 erodes"),
+    ST_SETTING(features.denoise, 0, 1, "keypoints from the frame through a 3x3 binomial filter (0: the raw frame)"),
     ST_SETTING(features.organ_patch_inside, 0, 1,
                "keep a keypoint only if its descriptor patch lies on the organ"),
     ST_SETTING(features.min_spread_cell_px, 2, 512, "smallest spreading cell, level pixels"),

@@ -1,10 +1,14 @@
-// ImagePyramid fast paths: tile-wise smoothing equals whole-level smoothing.
+// ImagePyramid fast paths: tile-wise smoothing equals whole-level smoothing;
+// the denoised level 0 equals the 3x3 binomial filter.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <vector>
 
 #include "core/image/image_pyramid.h"
+#include "support/alloc_guard.h"
 #include "support/orb_fixtures.h"
 
 using namespace st;
@@ -37,4 +41,35 @@ TEST_CASE("orb pyramid: smooth_tiles is bit-identical to build() in the tiles it
     CHECK(compared > 0);
     CHECK(differ == 0);
   }
+}
+
+TEST_CASE("orb pyramid: the denoised level 0 is the 3x3 binomial filter, edges replicated, without allocating") {
+  const cv::Mat img = synthetic_texture(1283, 725, 11u);  // odd width: the SIMD loop's scalar tail
+  ImagePyramid p;
+  REQUIRE(p.configure(img.cols, img.rows, 4, 1.2f));
+  const GrayView in = view_of(img);
+  const test::AllocationCounter counter;
+  REQUIRE(p.build_levels(in, true));
+  CHECK(counter.count() == 0);
+  const GrayView l0 = p.level(0);
+  const auto at = [&](int x, int y) {
+    return int{in(std::clamp(x, 0, in.width - 1), std::clamp(y, 0, in.height - 1))};
+  };
+  int differ = 0, changed = 0;
+  for (int y = 0; y < in.height; ++y)
+    for (int x = 0; x < in.width; ++x) {
+      int sum = 8;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) sum += (2 - std::abs(dx)) * (2 - std::abs(dy)) * at(x + dx, y + dy);
+      differ += int{l0(x, y)} != sum / 16;
+      changed += l0(x, y) != in(x, y);
+    }
+  CHECK(differ == 0);
+  CHECK(changed > in.width * in.height / 4);  // the texture is not flat: the filter did something
+  // Without denoise, level 0 is the image.
+  REQUIRE(p.build_levels(in));
+  int copied = 0;
+  for (int y = 0; y < in.height; ++y)
+    for (int x = 0; x < in.width; ++x) copied += p.level(0)(x, y) == in(x, y);
+  CHECK(copied == in.width * in.height);
 }
