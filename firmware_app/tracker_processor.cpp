@@ -65,7 +65,7 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
     const std::string name = to_string(static_cast<Stage>(i));
     fields->emplace_back("stage_" + name + "_mean_ms", stage_sum_ms_[i] / static_cast<double>(stage_runs_[i]));
   }
-  const Pinhole working = tracker_.working_camera().pinhole();
+  const Pinhole working = working_pinhole();
   fields->emplace_back("working_width", working.width);
   fields->emplace_back("working_height", working.height);
   fields->emplace_back("mesh_triangles", static_cast<double>(mesh_triangles_));

@@ -24,9 +24,7 @@ struct Pinhole {
   }
   // The same camera for an image scaled by s (s = 0.5: half size). With
   // pixel centres at integers, x' = (x + 0.5) * s - 0.5.
-  Pinhole scaled(double s, int new_width, int new_height) const {
-    return {fx * s, fy * s, (cx + 0.5) * s - 0.5, (cy + 0.5) * s - 0.5, new_width, new_height};
-  }
+  Pinhole scaled(double s, int new_width, int new_height) const { return scaled(s, s, new_width, new_height); }
   // Scaled by sx across and sy down (an image resampled to another aspect's rounding).
   Pinhole scaled(double sx, double sy, int new_width, int new_height) const {
     return {fx * sx, fy * sy, (cx + 0.5) * sx - 0.5, (cy + 0.5) * sy - 0.5, new_width, new_height};

@@ -161,4 +161,17 @@ bool AreaScaler::scale(GrayView in, ImageView<std::uint8_t> out) {
   return true;
 }
 
+Status FrameScaler::configure(int in_w, int in_h, int out_w, int out_h) {
+  if (Status s = luma_.configure(in_w, in_h, out_w, out_h); !s.ok()) return s;
+  return chroma_.configure(chroma_size(in_w), chroma_size(in_h), chroma_size(out_w), chroma_size(out_h));
+}
+
+bool FrameScaler::scale(GrayView y, GrayView u, GrayView v, ImageView<std::uint8_t> out_y,
+                        ImageView<std::uint8_t> out_u, ImageView<std::uint8_t> out_v, bool* chroma) {
+  *chroma = false;
+  if (!luma_.scale(y, out_y)) return false;
+  *chroma = !u.empty() && !v.empty() && chroma_.scale(u, out_u) && chroma_.scale(v, out_v);
+  return true;
+}
+
 }  // namespace st

@@ -58,4 +58,22 @@ class AreaScaler {
   std::vector<std::uint16_t> row_;  // one output row before the columns: in_w_ (+8 spare)
 };
 
+// A 4:2:0 frame to a smaller size: the luma by one AreaScaler, the two
+// chroma planes ((w + 1) / 2 x (h + 1) / 2 of each size) by another. The
+// caller owns the output planes. Same threading as AreaScaler.
+class FrameScaler {
+ public:
+  Status configure(int in_w, int in_h, int out_w, int out_h);
+  static int chroma_size(int luma_size) { return (luma_size + 1) / 2; }
+
+  // y into out_y (false when a size differs from configure()'s); u and v
+  // into out_u and out_v when both are given and of the configured chroma
+  // size (*chroma: whether they were).
+  bool scale(GrayView y, GrayView u, GrayView v, ImageView<std::uint8_t> out_y, ImageView<std::uint8_t> out_u,
+             ImageView<std::uint8_t> out_v, bool* chroma);
+
+ private:
+  AreaScaler luma_, chroma_;
+};
+
 }  // namespace st

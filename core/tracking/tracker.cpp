@@ -142,14 +142,11 @@ Status TrackerImpl::configure(const TrackerConfig& input_config, const Mesh& mes
       return make_error("tracker: the calibration at the working size " + std::to_string(ws.width) + "x" +
                         std::to_string(ws.height) + ": " + s.message());
     input_px_per_working_px_ = 1.0 / sx;
-    if (Status s = luma_scaler_.configure(input_config.width, input_config.height, ws.width, ws.height); !s.ok())
-      return make_error("tracker: working_width: " + s.message());
-    const int cw = (input_config.width + 1) / 2, ch = (input_config.height + 1) / 2;
-    if (Status s = chroma_scaler_.configure(cw, ch, (ws.width + 1) / 2, (ws.height + 1) / 2); !s.ok())
+    if (Status s = scaler_.configure(input_config.width, input_config.height, ws.width, ws.height); !s.ok())
       return make_error("tracker: working_width: " + s.message());
     work_y_.allocate(ws.width, ws.height);
-    work_u_.allocate((ws.width + 1) / 2, (ws.height + 1) / 2);
-    work_v_.allocate((ws.width + 1) / 2, (ws.height + 1) / 2);
+    work_u_.allocate(FrameScaler::chroma_size(ws.width), FrameScaler::chroma_size(ws.height));
+    work_v_.allocate(FrameScaler::chroma_size(ws.width), FrameScaler::chroma_size(ws.height));
   }
   config_ = config;
   camera_ = camera;
@@ -267,13 +264,13 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
     r.keyframes = map_.keyframe_count();
     return r;  // defined degraded state: lost, no pose
   }
-  if (scaling_ && !at_working) {
-    luma_scaler_.scale(luma, work_y_.view());
+  const bool scale_here = scaling_ && !at_working;
+  if (scale_here) {
+    bool scaled_chroma = false;
+    scaler_.scale(luma, chroma.u, chroma.v, work_y_.view(), work_u_.view(), work_v_.view(), &scaled_chroma);
     luma = work_y_.cview();
-    if (!chroma.empty() && chroma_scaler_.scale(chroma.u, work_u_.view()) && chroma_scaler_.scale(chroma.v, work_v_.view()))
-      chroma = ChromaView{work_u_.cview(), work_v_.cview()};
-    else
-      chroma = ChromaView{};  // none, or planes of another size: no occluder mask, as at the frame's size
+    // No chroma, or planes of another size: no occluder mask, as at the frame's size.
+    chroma = scaled_chroma ? ChromaView{work_u_.cview(), work_v_.cview()} : ChromaView{};
   }
   const double t_scaled = now_ms();
   const bool ba_applied = ba_.apply(&map_);  // safe point: nothing of this frame uses the map yet
@@ -292,7 +289,7 @@ TrackResult TrackerImpl::step(GrayView luma, int frame_index, ChromaView chroma)
   } else {
     r = track(luma, frame_index);
   }
-  if (scaling_ && !at_working) r.times_ms[static_cast<int>(Stage::kScale)] = t_scaled - t0;
+  if (scale_here) r.times_ms[static_cast<int>(Stage::kScale)] = t_scaled - t0;
   r.times_ms[static_cast<int>(Stage::kPyramid)] += t_valid - t_scaled;  // valid mask (and BA apply)
   if (occluder_pixels >= 0) r.times_ms[static_cast<int>(Stage::kOccluder)] = t_occluder - t_valid;
   r.occluder_pixels = occluder_pixels;

@@ -99,7 +99,7 @@ class TrackerImpl {
   int input_width_ = 0, input_height_ = 0;
   double input_px_per_working_px_ = 1.0;
   bool scaling_ = false;
-  AreaScaler luma_scaler_, chroma_scaler_;
+  FrameScaler scaler_;
   Image<std::uint8_t> work_y_, work_u_, work_v_;
   Pinhole K_;
   bool distorted_ = false;

@@ -24,16 +24,11 @@ Status Y4mCapture::set_working_size(int width, int height) {
   const Y4mHeader& h = reader_.header();
   scaling_ = false;
   if (width == h.width && height == h.height) return Status::Ok();
-  if (Status s = luma_scaler_.configure(h.width, h.height, width, height); !s) return s;
-  const bool chroma = h.chroma != Chroma::kMono;
-  if (chroma) {
-    if (Status s = chroma_scaler_.configure((h.width + 1) / 2, (h.height + 1) / 2, (width + 1) / 2, (height + 1) / 2); !s)
-      return s;
-  }
+  if (Status s = scaler_.configure(h.width, h.height, width, height); !s) return s;
   const auto slots = static_cast<std::size_t>(ring_slots_);
   work_y_.assign(slots, Image<std::uint8_t>(width, height));
-  work_u_.assign(chroma ? slots : 0, Image<std::uint8_t>((width + 1) / 2, (height + 1) / 2));
-  work_v_ = work_u_;
+  work_u_.assign(slots, Image<std::uint8_t>(FrameScaler::chroma_size(width), FrameScaler::chroma_size(height)));
+  work_v_ = work_u_;  // (a mono video's frames have no chroma: these stay unused)
   scaling_ = true;
   return Status::Ok();
 }
@@ -41,10 +36,10 @@ Status Y4mCapture::set_working_size(int width, int height) {
 // Frame number frame's working-size copy, into its ring slot's buffers.
 void Y4mCapture::scale_to_working(std::uint32_t frame, FrameRef* f) {
   const std::size_t slot = frame % ring_slots_;
-  luma_scaler_.scale(f->y, work_y_[slot].view());
+  bool chroma = false;
+  scaler_.scale(f->y, f->u, f->v, work_y_[slot].view(), work_u_[slot].view(), work_v_[slot].view(), &chroma);
   f->y_work = work_y_[slot].cview();
-  if (!work_u_.empty() && chroma_scaler_.scale(f->u, work_u_[slot].view()) &&
-      chroma_scaler_.scale(f->v, work_v_[slot].view())) {
+  if (chroma) {
     f->u_work = work_u_[slot].cview();
     f->v_work = work_v_[slot].cview();
   }

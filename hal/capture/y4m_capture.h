@@ -81,7 +81,7 @@ class Y4mCapture final : public FrameSource {
   std::thread thread_;
   // The working size's scalers (capture thread) and one frame per ring slot.
   bool scaling_ = false;
-  AreaScaler luma_scaler_, chroma_scaler_;
+  FrameScaler scaler_;
   std::vector<Image<std::uint8_t>> work_y_, work_u_, work_v_;
 };
 

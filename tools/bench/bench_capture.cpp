@@ -87,22 +87,20 @@ Row bench_scale(const Options& opt, int in_w, int in_h, int out_w, int out_h) {
     u.back().fill(120);
     v.back().fill(140);
   }
-  AreaScaler sy, sc;
+  FrameScaler scaler;
   Image<std::uint8_t> oy(out_w, out_h), ou(out_w / 2, out_h / 2), ov(out_w / 2, out_h / 2);
   Row row{"scale " + std::to_string(in_w) + "x" + std::to_string(in_h) + " -> " + std::to_string(out_w) + "x" +
               std::to_string(out_h) + " 4:2:0",
           {}, "cv::resize INTER_AREA", {}, ""};
-  if (!sy.configure(in_w, in_h, out_w, out_h).ok() || !sc.configure(in_w / 2, in_h / 2, out_w / 2, out_h / 2).ok())
-    return row;
+  if (!scaler.configure(in_w, in_h, out_w, out_h).ok()) return row;
   cv::Mat ry, ru, rv;
   const auto mat = [](Image<std::uint8_t>& i) { return cv::Mat(i.height(), i.width(), CV_8U, i.data()); };
   const int n = opt.iterations > 0 ? opt.iterations : 200;
   for (int i = 0; i < n; ++i) {
     const auto f = static_cast<std::size_t>(i % kFrames);
     double t0 = now_ms();
-    sy.scale(y[f].cview(), oy.view());
-    sc.scale(u[f].cview(), ou.view());
-    sc.scale(v[f].cview(), ov.view());
+    bool chroma = false;
+    scaler.scale(y[f].cview(), u[f].cview(), v[f].cview(), oy.view(), ou.view(), ov.view(), &chroma);
     row.samples_ms.push_back(now_ms() - t0);
     const auto g = static_cast<std::size_t>((i + kFrames / 2) % kFrames);
     t0 = now_ms();

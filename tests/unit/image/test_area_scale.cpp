@@ -2,7 +2,8 @@
 // INTER_AREA (exact area weights in float) at the ratios the tower's
 // frames need (3:2, 3:1, 2:1, each through its 8-lane path) and at an odd
 // one (the table path), a flat plane kept flat, the same size returned
-// as it is, bad sizes refused, and no allocation while scaling.
+// as it is, bad sizes refused, and no allocation while scaling; the
+// 4:2:0 frame scaler's planes.
 #include <doctest/doctest.h>
 
 #include <cstdint>
@@ -115,4 +116,27 @@ TEST_CASE("area scale: scaling allocates nothing") {
     CHECK(odd.scale(in.cview(), odd_out.view()));
   }
   CHECK(counter.count() == 0);
+}
+
+TEST_CASE("area scale: a 4:2:0 frame's three planes, the chroma only when it has the frame's chroma size") {
+  const Image<std::uint8_t> y = scene(1920, 1080, 8), u = scene(960, 540, 9), v = scene(960, 540, 10);
+  FrameScaler frame;
+  REQUIRE(frame.configure(1920, 1080, 1280, 720).ok());
+  Image<std::uint8_t> oy(1280, 720), ou(640, 360), ov(640, 360), ref(640, 360);
+  bool chroma = false;
+  REQUIRE(frame.scale(y.cview(), u.cview(), v.cview(), oy.view(), ou.view(), ov.view(), &chroma));
+  CHECK(chroma);
+  AreaScaler plane;
+  REQUIRE(plane.configure(960, 540, 640, 360).ok());
+  REQUIRE(plane.scale(v.cview(), ref.view()));
+  bool same = true;
+  for (int r = 0; r < 360; ++r)
+    for (int c = 0; c < 640; ++c) same = same && ov(c, r) == ref(c, r);
+  CHECK(same);
+  REQUIRE(frame.scale(y.cview(), GrayView{}, GrayView{}, oy.view(), ou.view(), ov.view(), &chroma));
+  CHECK_FALSE(chroma);  // no chroma: the luma alone
+  const Image<std::uint8_t> odd = scene(900, 540, 11);
+  REQUIRE(frame.scale(y.cview(), odd.cview(), v.cview(), oy.view(), ou.view(), ov.view(), &chroma));
+  CHECK_FALSE(chroma);  // a plane of another size
+  CHECK_FALSE(frame.scale(u.cview(), u.cview(), v.cview(), oy.view(), ou.view(), ov.view(), &chroma));
 }
