@@ -19,7 +19,14 @@ packages=(
   libcamera-dev                          # hal: live capture
   doctest-dev                            # tests
   ffmpeg                                 # tests + overlay tool: Y4M/MP4 conversion (host only)
+  libboost-dev                           # scopetrack-studio: Boost.Beast HTTP + WebSocket (header-only)
+  chromium                               # scopetrack-studio's browser tests (headless, driven by Playwright)
 )
+# The studio's page is built with Node.js >= 20 and npm; a machine that has
+# them (Node.js from elsewhere than Debian) keeps them, one without gets Debian's.
+if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+  packages+=(nodejs npm)
+fi
 if [[ "${1:-}" == "--fuzz" ]]; then
   packages+=(clang-14 libclang-rt-14-dev)
 fi

@@ -39,6 +39,8 @@ class ConsoleSession {
   // Per triangle: RGB (3 bytes) and whether a colour arrived.
   const std::vector<std::uint8_t>& face_rgb() const { return face_rgb_; }
   int coloured_triangles() const { return coloured_count_; }
+  // Per triangle: 1 once a colour arrived.
+  const std::vector<std::uint8_t>& has_colour() const { return has_colour_; }
   const std::optional<HealthSample>& health() const { return health_; }
   std::int64_t rejected() const { return rejected_; }
   const std::string& last_error() const { return last_error_; }

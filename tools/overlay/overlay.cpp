@@ -117,18 +117,27 @@ void OverlayRenderer::draw_state(const FrameAnnotations& a) {
               cv::LINE_AA);
 }
 
-void OverlayRenderer::draw(const FrameAnnotations& a, ImageView<std::uint8_t> y, ImageView<std::uint8_t> u,
-                           ImageView<std::uint8_t> v) {
+const OverlayLayer& OverlayRenderer::draw_layer(const FrameAnnotations& a) {
   layer_.clear();
   if (a.T_model_camera) {
     render_labels(*a.T_model_camera);
+    if (style_.fill_alpha > 0) {
+      for (int y = 0; y < height_; ++y)
+        for (int x = 0; x < width_; ++x)
+          if (labels_(x, y) >= 0) layer_.set(x, y, style_.silhouette, style_.fill_alpha);
+    }
     if (style_.wireframe) draw_wireframe(labels_.cview(), style_.silhouette, style_.wireframe_alpha, &layer_);
     draw_silhouette(labels_.cview(), style_.silhouette, std::max(1, width_ / 640), &layer_);
   }
   if (style_.markers && a.T_model_camera_gt) draw_markers(*a.T_model_camera_gt, style_.truth_marker, true);
   if (style_.markers && a.T_model_camera) draw_markers(*a.T_model_camera, style_.tracked_marker, false);
-  draw_state(a);
-  layer_.composite(y, u, v);
+  if (style_.state) draw_state(a);
+  return layer_;
+}
+
+void OverlayRenderer::draw(const FrameAnnotations& a, ImageView<std::uint8_t> y, ImageView<std::uint8_t> u,
+                           ImageView<std::uint8_t> v) {
+  draw_layer(a).composite(y, u, v);
 }
 
 namespace {

@@ -34,6 +34,8 @@ struct OverlayStyle {
   Rgb lost_border{255, 0, 0};
   Rgb relocalised_border{255, 140, 0};
   double wireframe_alpha = 0.3;
+  double fill_alpha = 0.0;  // > 0: the organ's area tinted with the silhouette colour
+  bool state = true;        // the lost / relocalised border and, with text, the frame line
 };
 
 // What to draw on one frame.
@@ -52,6 +54,9 @@ class OverlayRenderer {
   // Draws into the 4:2:0 planes of one frame (modified in place).
   void draw(const FrameAnnotations& a, ImageView<std::uint8_t> y, ImageView<std::uint8_t> u,
             ImageView<std::uint8_t> v);
+  // Draws only the layer (transparent where nothing is drawn), for a viewer
+  // that composites it itself.
+  const OverlayLayer& draw_layer(const FrameAnnotations& a);
   // Organ labels of the last draw() with a pose (visible triangle id per
   // frame pixel, -1 where no organ): for tests.
   ImageView<const std::int32_t> labels() const { return labels_.cview(); }
