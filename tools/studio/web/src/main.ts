@@ -4,6 +4,7 @@
 import { Connection } from './connection';
 import { FrameView } from './frame-view';
 import { hooks } from './hooks';
+import type { Vec3 } from './geometry';
 import { MeshView, WebGLUnavailable } from './mesh-view';
 import type { BinaryMessage, InfoMessage, ServerJson } from './protocol';
 import { RegisterView } from './register';
@@ -77,6 +78,13 @@ function openView(info: InfoMessage, connection: Connection, frame: FrameView): 
   let webglError: string | null = null;
   try {
     mesh = new MeshView(byId('mesh-view'));
+    // Orienting the mesh like the frame is the slow part of a first
+    // registration: views along the model's axes.
+    for (const button of document.querySelectorAll<HTMLButtonElement>('#view-buttons button[data-axis]')) {
+      const axis = (button.dataset.axis ?? '0,0,1').split(',').map(Number) as Vec3;
+      const view3d = mesh;
+      button.addEventListener('click', () => view3d.viewAlong(axis));
+    }
   } catch (error) {
     if (!(error instanceof WebGLUnavailable)) throw error;
     webglError = error.message;

@@ -173,6 +173,20 @@ export class MeshView {
         up = new THREE.Vector3(...rotationRow(T_camera_model, 1)).negate(); // image up = -y of the camera
       }
     }
+    this.place(direction, up, distance, fitRadius);
+  }
+
+  /** Looks at the whole mesh from along a model axis (e.g. [0, 0, -1]: from -z). */
+  viewAlong(axis: Vec3): void {
+    const direction = new THREE.Vector3(...axis).normalize();
+    // Up: the model's +y unless the view is along y, then -z.
+    const up = Math.abs(direction.y) > 0.9 ? new THREE.Vector3(0, 0, -Math.sign(direction.y)) : new THREE.Vector3(0, 1, 0);
+    this.place(direction, up, 0, 0);
+  }
+
+  private place(direction: THREE.Vector3, up: THREE.Vector3, minDistance: number, fitRadius: number): void {
+    const c = this.centroid;
+    let distance = minDistance;
     const halfFov = THREE.MathUtils.degToRad(FIELD_OF_VIEW_DEG / 2);
     const halfFovX = Math.atan(Math.tan(halfFov) * this.camera.aspect);
     const fit = (Math.max(this.radius, fitRadius) * 1.08) / Math.sin(Math.min(halfFov, halfFovX));

@@ -70,6 +70,10 @@ export class RegisterView implements View {
       hooks.meshVertices = () => mesh.meshData?.vertices.slice() ?? new Float32Array(0);
       hooks.meshTriangles = () => mesh.meshData?.triangles.slice() ?? new Uint32Array(0);
       mesh.onClick((x, y) => this.meshClicked(x, y));
+      // Once a pose exists, the mesh can be seen from the registered scope.
+      byId('view-result').addEventListener('click', () => {
+        if (this.registration?.ok) mesh.frameMesh(this.registration.T_camera_model);
+      });
     }
     frame.listen({
       markerAt: (u, v, radius) => this.markerAt(u, v, radius),
@@ -206,6 +210,7 @@ export class RegisterView implements View {
   private showRegistration(): void {
     const r = this.registration;
     if (!r) return;
+    byId('view-result').hidden = !r.ok;
     if (r.ok && this.commandsSent === 0) {
       showMessage('info', `The server's last registration (${r.pairs} pairs, from an earlier page): ${r.inliers} inliers, RMS ${formatNumber(r.rms_px, 2)} px.`, [
         'Its pairs are not on this page: add pairs here to register again.',

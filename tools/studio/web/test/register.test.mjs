@@ -88,6 +88,17 @@ test('register: clicked pairs recover the true pose, and Save writes it', { time
   assert.ok(drawn > 0.05 * camera.width * camera.height, `the overlay covers only ${drawn} pixels`);
   await h.screenshot(page, 'studio-register.png');
 
+  // The 3D view from an axis, then from the registered scope: the first
+  // pick's model point comes back to where it was seen from the scope.
+  const P = await page.evaluate(() => window.studio.pairs()[0]);
+  await page.click('#view-buttons button[data-axis="0,0,-1"]');
+  const fromAxis = await page.evaluate(([x, y, z]) => window.studio.meshToClient(x, y, z), [P.x, P.y, P.z]);
+  assert.ok(await page.locator('#view-result').isVisible(), 'the view from the registered scope is offered');
+  await page.click('#view-result');
+  const fromScope = await page.evaluate(([x, y, z]) => window.studio.meshToClient(x, y, z), [P.x, P.y, P.z]);
+  assert.ok(fromAxis && fromScope && Math.hypot(fromAxis.x - fromScope.x, fromAxis.y - fromScope.y) > 1,
+    'the view buttons move the 3D view');
+
   await page.click('#save');
   await page.waitForFunction(() => /Saved/.test(window.studio.lastMessage), null, { timeout: 15000 });
   const saved = await h.message(page);
