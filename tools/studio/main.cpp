@@ -142,6 +142,9 @@ int main(int argc, char** argv) {
   const std::string host = server_options.address.find(':') != std::string::npos
                                ? "[" + server_options.address + "]"
                                : server_options.address;
+  if (server_options.address != "127.0.0.1" && server_options.address != "::1")
+    std::fprintf(stderr, "scopetrack-studio: warning: listening on %s, reachable from other machines; the studio "
+                 "has no authentication\n", server_options.address.c_str());
   std::printf("scopetrack-studio: http://%s:%d/\n", host.c_str(), server.port());
   std::fflush(stdout);
   if (watch) (void)watch->start();
