@@ -2,6 +2,7 @@
 # Builds the page of scopetrack-studio into OUTDIR:
 #   OUTDIR/node_modules  npm ci of package-lock.json (only when the lockfile changed)
 #   OUTDIR/gen           the console stream's FlatBuffers code (flatc --ts)
+#   OUTDIR/src           the page's TypeScript, type-checked there (tsc --noEmit)
 #   OUTDIR/dist          the bundled page (studio.js), index.html, studio.css: what the server serves
 #   OUTDIR/test          the browser tests (their 'playwright-core' resolves from OUTDIR/node_modules)
 # usage: tools/studio/web/build.sh OUTDIR      (CMake's target studio_web runs it into build/studio-web)
@@ -41,16 +42,32 @@ fi
 rm -rf "$out/gen"
 "$flatc" --ts -o "$out/gen" "$schema" || die "flatc --ts failed on $schema"
 
-# 3. The page: one bundle; 'studio-gen/...' imports name OUTDIR/gen, packages come from OUTDIR/node_modules.
+# 3. The sources beside node_modules, type-checked (esbuild only strips the
+#    types): strict TypeScript against three's declarations and the generated code.
+rm -rf "$out/src"
+cp -r "$web_dir/src" "$out/src"
+cat > "$out/tsconfig.json" <<'JSON'
+{
+  "compilerOptions": {
+    "target": "es2020", "module": "es2020", "moduleResolution": "bundler", "strict": true,
+    "noEmit": true, "skipLibCheck": true, "lib": ["es2020", "dom", "dom.iterable"],
+    "paths": { "studio-gen/*": ["./gen/*"] }
+  },
+  "include": ["src/**/*.ts"]
+}
+JSON
+"$out/node_modules/.bin/tsc" -p "$out/tsconfig.json" || die "the page's TypeScript does not type-check (above)"
+
+# 4. The page: one bundle; 'studio-gen/...' imports name OUTDIR/gen, packages come from OUTDIR/node_modules.
 rm -rf "$out/dist"
 mkdir -p "$out/dist"
-NODE_PATH="$out/node_modules" "$out/node_modules/.bin/esbuild" "$web_dir/src/main.ts" \
+"$out/node_modules/.bin/esbuild" "$out/src/main.ts" \
   --bundle --format=esm --target=es2020 --minify --sourcemap --log-level=warning \
   --alias:studio-gen="$out/gen" \
   --outfile="$out/dist/studio.js" || die "esbuild failed to bundle $web_dir/src/main.ts"
 cp "$web_dir/index.html" "$web_dir/studio.css" "$out/dist/"
 
-# 4. The browser tests, beside node_modules.
+# 5. The browser tests, beside node_modules.
 rm -rf "$out/test"
 mkdir -p "$out/test"
 cp "$web_dir"/test/*.mjs "$out/test/"
