@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <string>
 
 #include "core/evaluation/evaluation.h"
@@ -45,10 +46,11 @@ int make_mask(const std::filesystem::path& dir, int frame, const std::filesystem
   if (!seq) return std::fprintf(stderr, "scopetrack-studio: %s\n", seq.message().c_str()), 1;
   if (seq->groundtruth.empty())
     return std::fprintf(stderr, "scopetrack-studio: %s has no ground truth\n", dir.c_str()), 1;
-  const double fps = seq->config.fps;
+  // The evaluation's rule for which frame a ground-truth pose belongs to;
+  // the video itself is not read, so any frame number may be asked.
   const st::TimedPose* pose = nullptr;
   for (const st::TimedPose& p : seq->groundtruth)
-    if (std::abs(p.timestamp_s * fps - frame) < 0.5) pose = &p;
+    if (st::frame_for_timestamp(p.timestamp_s, seq->config.fps, std::numeric_limits<int>::max()) == frame) pose = &p;
   if (!pose) return std::fprintf(stderr, "scopetrack-studio: no ground-truth pose for frame %d\n", frame), 1;
   st::overlay::OverlayRenderer renderer;
   st::overlay::OverlayStyle style;

@@ -40,11 +40,6 @@ void spread(const std::vector<Eigen::Matrix<double, D, 1>>& pts, Eigen::Matrix<d
   for (int i = 0; i < D; ++i) (*axes)(i) = std::sqrt(std::max(0.0, ev(D - 1 - i)));
 }
 
-
-Outgoing error_message(const std::string& message) {
-  return text_message("{\"type\":\"error\",\"message\":" + json_string(message) + "}");
-}
-
 }  // namespace
 
 Result<LoadedSequence> load_checked_sequence(const std::filesystem::path& dir) {
@@ -123,42 +118,31 @@ RegisterController::RegisterController(Result<LoadedSequence> sequence, int fram
   seq_ = std::move(sequence.value());
   const SequenceConfig& c = seq_->config;
   camera_ = CameraModel(c.K, c.distortion);
-  overlay::OverlayStyle style;
-  style.fill_alpha = 0.2;
-  style.state = false;
-  style.text = false;
   if (Status s = surface_.configure(seq_->mesh); !s) error_ = "mesh: " + s.message();
-  if (Status s = renderer_.configure(*seq_, style); !s && error_.empty()) error_ = s.message();
+  if (Status s = renderer_.configure(*seq_, studio_overlay_style()); !s && error_.empty()) error_ = s.message();
   if (Status s = video_.open(seq_->video_path); !s && error_.empty()) error_ = s.message();
   if (error_.empty()) {
     auto f = video_.frame(frame_);
     if (!f) error_ = f.message();
     else frame_jpeg_ = encode_jpeg(f.value());
   }
+  if (!error_.empty()) return;
+  mesh_message_ = binary_message(binary_header(BinaryKind::kMesh, 0) + mesh_payload(seq_->mesh));
+  check_current_pose();
 }
 
-std::string RegisterController::info_json() const {
-  const SequenceConfig& c = seq_->config;
-  std::string s = "{\"type\":\"info\",\"mode\":\"register\",\"sequence\":" +
-                  json_string(std::filesystem::absolute(seq_->dir).filename().string()) +
-                  ",\"width\":" + std::to_string(c.width) + ",\"height\":" + std::to_string(c.height) +
-                  ",\"frames\":" + std::to_string(video_.count()) + ",\"frame\":" + std::to_string(frame_) +
-                  ",\"fps\":" + json_number(c.fps) +
-                  ",\"has_groundtruth\":" + (seq_->groundtruth.empty() ? "false" : "true") +
-                  ",\"T_camera_model_init\":" + matrix_json(c.T_camera_model_init) + ",\"K\":[" +
-                  json_number(c.K.fx) + "," + json_number(c.K.fy) + "," + json_number(c.K.cx) + "," +
-                  json_number(c.K.cy) + "],\"distortion\":[";
-  for (int i = 0; i < 5; ++i) s += json_number(c.distortion.k[static_cast<std::size_t>(i)]) + (i < 4 ? "," : "]");
-  // The tracker's own check of the current pose: why the sequence needs registering.
+// The tracker's own check of T_camera_model_init (why the sequence needs
+// registering), shown to every page that opens; again after a save.
+void RegisterController::check_current_pose() {
   const Status check = app::check_sequence_for_replay(*seq_);
-  s += ",\"check\":" + json_string(check ? "" : check.message()) + "}";
-  return s;
+  check_message_ = check ? "" : check.message();
 }
 
 std::vector<Outgoing> RegisterController::greeting() {
   if (!error_.empty()) return {error_message(error_)};
-  std::vector<Outgoing> out = {text_message(info_json()),
-                               binary_message(binary_header(BinaryKind::kMesh, 0) + mesh_payload(seq_->mesh)),
+  std::vector<Outgoing> out = {text_message(info_json(*seq_, "register", video_.count(), frame_,
+                                                      ",\"check\":" + json_string(check_message_))),
+                               mesh_message_,
                                binary_message(binary_header(BinaryKind::kFrame, static_cast<std::uint32_t>(frame_)) +
                                               frame_jpeg_)};
   for (const Outgoing& m : last_answer_) out.push_back(m);
@@ -292,6 +276,7 @@ std::vector<Outgoing> RegisterController::run_registration(std::string_view pair
     return out;
   }
   seq_->config.T_camera_model_init = r.T_camera_model;
+  check_current_pose();
   std::printf("scopetrack-studio: saved %s (the old file: %s) and %s\n", yaml_path.c_str(), backup.c_str(),
               pairs_path.c_str());
   std::fflush(stdout);

@@ -58,7 +58,7 @@ class RegisterController final : public PageHandler {
   std::vector<Outgoing> show_frame(int index);
   std::vector<Outgoing> run_registration(std::string_view pairs_text, bool save);
   Outgoing overlay_message(const SE3* T_camera_model);
-  std::string info_json() const;
+  void check_current_pose();
 
   std::string error_;  // the sequence cannot be used
   std::optional<LoadedSequence> seq_;
@@ -68,6 +68,8 @@ class RegisterController final : public PageHandler {
   VideoFrames video_;
   int frame_ = 0;
   std::string frame_jpeg_;
+  Outgoing mesh_message_;      // encoded once: the same for every page
+  std::string check_message_;  // the tracker's verdict on T_camera_model_init ("" when usable)
   std::string last_pairs_;  // the last pairs text registered, re-run on another frame
   std::vector<Outgoing> last_answer_;
 };

@@ -116,4 +116,30 @@ std::string mesh_payload(const Mesh& mesh) {
   return out;
 }
 
+std::string info_json(const LoadedSequence& seq, std::string_view mode, int frames, int frame,
+                      std::string_view extra_fields) {
+  const SequenceConfig& c = seq.config;
+  std::string s = "{\"type\":\"info\",\"mode\":" + json_string(mode) + ",\"sequence\":" +
+                  json_string(std::filesystem::absolute(seq.dir).filename().string()) +
+                  ",\"width\":" + std::to_string(c.width) + ",\"height\":" + std::to_string(c.height) +
+                  ",\"frames\":" + std::to_string(frames) + ",\"frame\":" + std::to_string(frame) +
+                  ",\"fps\":" + json_number(c.fps) +
+                  ",\"has_groundtruth\":" + (seq.groundtruth.empty() ? "false" : "true") +
+                  ",\"T_camera_model_init\":" + matrix_json(c.T_camera_model_init) + ",\"K\":[" +
+                  json_number(c.K.fx) + "," + json_number(c.K.fy) + "," + json_number(c.K.cx) + "," +
+                  json_number(c.K.cy) + "],\"distortion\":[";
+  for (int i = 0; i < 5; ++i) s += json_number(c.distortion.k[static_cast<std::size_t>(i)]) + (i < 4 ? "," : "]");
+  s.append(extra_fields);
+  s += "}";
+  return s;
+}
+
+overlay::OverlayStyle studio_overlay_style() {
+  overlay::OverlayStyle style;
+  style.fill_alpha = 0.2;
+  style.state = false;
+  style.text = false;
+  return style;
+}
+
 }  // namespace st::studio

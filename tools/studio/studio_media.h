@@ -11,6 +11,8 @@
 #include "core/geometry/se3.h"
 #include "core/mesh/mesh.h"
 #include "hal/capture/y4m_reader.h"
+#include "hal/storage/sequence_loader.h"
+#include "tools/overlay/overlay.h"
 #include "tools/overlay/overlay_draw.h"
 #include "tools/studio/web_server.h"
 
@@ -46,5 +48,14 @@ std::string encode_png(const overlay::OverlayLayer& layer);
 std::string mesh_payload(const Mesh& mesh);
 // A rigid transform as 16 row-major JSON numbers.
 std::string matrix_json(const SE3& T);
+// The "info" message a page gets first: the mode, the sequence's folder
+// name, size, frames, the frame shown, fps, whether it has ground truth,
+// T_camera_model_init, K and the distortion; extra_fields (",\"key\":value"
+// pairs, the mode's own) are appended as they are.
+std::string info_json(const LoadedSequence& seq, std::string_view mode, int frames, int frame,
+                      std::string_view extra_fields);
+// How the studio draws the organ: a light fill under the outline, no state
+// border, no text (the page shows those itself).
+overlay::OverlayStyle studio_overlay_style();
 
 }  // namespace st::studio

@@ -36,6 +36,7 @@ WatchController::WatchController(Result<LoadedSequence> sequence, std::string en
   seq_ = std::move(sequence.value());
   std::string e;
   if (!platform::parse_endpoint(endpoint_text_, &endpoint_, &e)) error_ = "--stream: " + e;
+  mesh_message_ = binary_message(binary_header(BinaryKind::kMesh, 0) + mesh_payload(seq_->mesh));
 }
 
 WatchController::~WatchController() { stop(); }
@@ -146,13 +147,10 @@ void WatchController::link_loop() {
 void WatchController::frame_loop() {
   VideoFrames video;
   overlay::OverlayRenderer renderer;
-  overlay::OverlayStyle style;
-  style.fill_alpha = 0.2;
-  style.state = false;
-  style.text = false;
   std::string setup_error;
   if (Status s = video.open(seq_->video_path); !s) setup_error = s.message();
-  if (Status s = renderer.configure(*seq_, style); !s && setup_error.empty()) setup_error = s.message();
+  if (Status s = renderer.configure(*seq_, studio_overlay_style()); !s && setup_error.empty())
+    setup_error = s.message();
   if (!setup_error.empty()) {
     set_link("disconnected", "the studio cannot show the video: " + setup_error);
     return;
@@ -178,10 +176,7 @@ void WatchController::frame_loop() {
     if (!frame) {
       if (frame.message() != last_video_error) {
         last_video_error = frame.message();
-        server_->broadcast(text_message("{\"type\":\"error\",\"message\":" +
-                                        json_string("frame " + std::to_string(pose.frame) + ": " +
-                                                    frame.message()) +
-                                        "}"));
+        server_->broadcast(error_message("frame " + std::to_string(pose.frame) + ": " + frame.message()));
       }
       continue;
     }
@@ -209,23 +204,11 @@ void WatchController::frame_loop() {
 
 void WatchController::on_open(const PagePtr& page) {
   if (!error_.empty()) {
-    page->send(text_message("{\"type\":\"error\",\"message\":" + json_string(error_) + "}"));
+    page->send(error_message(error_));
     return;
   }
-  const SequenceConfig& c = seq_->config;
-  std::string info = "{\"type\":\"info\",\"mode\":\"watch\",\"sequence\":" +
-                     json_string(std::filesystem::absolute(seq_->dir).filename().string()) +
-                     ",\"width\":" + std::to_string(c.width) + ",\"height\":" + std::to_string(c.height) +
-                     ",\"frames\":-1,\"frame\":0,\"fps\":" + json_number(c.fps) +
-                     ",\"has_groundtruth\":" + (seq_->groundtruth.empty() ? "false" : "true") +
-                     ",\"endpoint\":" + json_string(endpoint_text_) + ",\"T_camera_model_init\":" +
-                     matrix_json(c.T_camera_model_init) + ",\"K\":[" + json_number(c.K.fx) + "," +
-                     json_number(c.K.fy) + "," + json_number(c.K.cx) + "," + json_number(c.K.cy) +
-                     "],\"distortion\":[";
-  for (int i = 0; i < 5; ++i) info += json_number(c.distortion.k[static_cast<std::size_t>(i)]) + (i < 4 ? "," : "]");
-  info += "}";
-  page->send(text_message(std::move(info)));
-  page->send(binary_message(binary_header(BinaryKind::kMesh, 0) + mesh_payload(seq_->mesh)));
+  page->send(text_message(info_json(*seq_, "watch", -1, 0, ",\"endpoint\":" + json_string(endpoint_text_))));
+  page->send(mesh_message_);
   // Catch up: what the link kept, re-encoded in the stream's own messages.
   std::lock_guard<std::mutex> lock(mutex_);
   page->send(text_message(link_json()));
@@ -253,9 +236,7 @@ void WatchController::on_open(const PagePtr& page) {
 }
 
 void WatchController::on_text(const PagePtr& page, std::string_view text) {
-  page->send(text_message("{\"type\":\"error\",\"message\":" +
-                          json_string("the watch view takes no commands (got " + quote_bytes(text) + ")") +
-                          "}"));
+  page->send(error_message("the watch view takes no commands (got " + quote_bytes(text) + ")"));
 }
 
 }  // namespace st::studio

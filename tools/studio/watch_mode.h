@@ -47,6 +47,7 @@ class WatchController final : public PageHandler {
   std::string error_;
   std::optional<LoadedSequence> seq_;
   std::string endpoint_text_;
+  Outgoing mesh_message_;  // encoded once: the same for every page
   platform::Endpoint endpoint_;
   WebServer* server_;
   std::thread link_thread_, frame_thread_;

@@ -87,6 +87,10 @@ std::string json_number(double v) {
   return buf;
 }
 
+Outgoing error_message(std::string_view message) {
+  return text_message("{\"type\":\"error\",\"message\":" + json_string(message) + "}");
+}
+
 std::string binary_header(BinaryKind kind, std::uint32_t frame) {
   std::string h(8, '\0');
   h[0] = static_cast<char>(kind);
@@ -179,7 +183,7 @@ class WsPage final : public PageConnection, public std::enable_shared_from_this<
       if (self->ws_.got_text()) {
         self->server_->handler->on_text(self, text);
       } else {
-        self->enqueue(text_message("{\"type\":\"error\",\"message\":\"binary messages are not commands\"}"));
+        self->enqueue(error_message("binary messages are not commands"));
       }
       self->read();
     });

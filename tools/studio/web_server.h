@@ -86,6 +86,8 @@ class WebServer {
 // Minimal JSON writing for the server's messages.
 std::string json_string(std::string_view s);  // quoted and escaped
 std::string json_number(double v);            // finite: %.10g; otherwise null
+// {"type":"error","message":...}: what a page shows as an error.
+Outgoing error_message(std::string_view message);
 
 // The 8-byte header of a binary message: kind, 3 zero bytes, frame (LE).
 enum class BinaryKind : std::uint8_t { kMesh = 1, kFrame = 2, kOverlay = 3, kStream = 4 };
