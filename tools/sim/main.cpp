@@ -21,7 +21,7 @@ constexpr const char* kCtLiver = SCOPETRACK_SIM_CT_LIVER;
 
 void usage(std::FILE* to) {
   std::fprintf(to,
-               "usage: scopetrack-sim --scenario orbit|fast|outofview|manipulation|invivo --out DIR\n"
+               "usage: scopetrack-sim --scenario orbit|fast|outofview|manipulation|invivo|newview --out DIR\n"
                "                      [--frames N (300)] [--size WxH (1280x720; invivo 960x540)]\n"
                "                      [--seed S (1)] [--organ liver|kidney|stomach (liver) | --mesh FILE.ply|stl]\n"
                "                      [--field-stop on|off]\n"

@@ -29,8 +29,9 @@ Result<ScenarioKind> parse_scenario(std::string_view name) {
   if (name == "outofview") return ScenarioKind::OutOfView;
   if (name == "manipulation") return ScenarioKind::Manipulation;
   if (name == "invivo") return ScenarioKind::InVivo;
+  if (name == "newview") return ScenarioKind::NewView;
   return make_error("unknown scenario '" + std::string(name) +
-                    "': use orbit, fast, outofview, manipulation or invivo");
+                    "': use orbit, fast, outofview, manipulation, invivo or newview");
 }
 
 const char* scenario_name(ScenarioKind kind) {
@@ -40,6 +41,7 @@ const char* scenario_name(ScenarioKind kind) {
     case ScenarioKind::OutOfView: return "outofview";
     case ScenarioKind::Manipulation: return "manipulation";
     case ScenarioKind::InVivo: return "invivo";
+    case ScenarioKind::NewView: return "newview";
   }
   return "?";
 }
@@ -78,6 +80,7 @@ Trajectory::Trajectory(ScenarioKind kind, const Scene& scene, int frames, std::u
   const double side = azimuth0_ - 70.0 * kDeg;  // away from the orbit sweep
   hover_world_ = Vec3(0.05 * box_.size().x(), -0.1 * box_.size().y(), box_.max.z() + 6.0);
   trocar_world_ = Vec3(0, 0, 0) + spherical(side, 50.0 * kDeg, 260.0);
+  for (int i = 0; i < scene.organ.vertex_count(); i += 4) organ_world_.push_back(T_world_model_rest_ * scene.organ.vertex(i));
 }
 
 Trajectory::View Trajectory::orbit_view(double u) const {
@@ -113,6 +116,69 @@ Trajectory::View Trajectory::outofview_view(double u) const {
   v.eye = base.eye + away * (away_eye - base.eye);
   v.roll_rad = base.roll_rad + away * (start.roll_rad - base.roll_rad);
   return v;
+}
+
+// newview: orbit the near side for a third of the sequence, turn away to
+// the abdominal wall (as outofview does), travel while looking at the wall
+// to a place the map never saw from, and turn back to the organ there:
+// 100 deg further round it and 12-48 deg lower (more than 35 deg from any
+// earlier view), at 38 mm from the nearest surface (the orbit: 80 mm and
+// more); then sweep the far side at that distance. Turn away in [0.32,
+// 0.38], travel in [0.38, 0.52], pan back in [0.52, 0.62].
+Trajectory::View Trajectory::newview_view(double u) const {
+  const Vec3 away_dir(std::cos(azimuth0_ + 2.2), std::sin(azimuth0_ + 2.2), 0.0);
+  const Vec3 wall = 230.0 * away_dir + Vec3(0, 0, box_.max.z());
+  const View start = orbit_view(0.38);
+  const Vec3 away_eye = start.eye + 0.35 * (wall - start.target);
+  if (u < 0.38) {
+    const View base = orbit_view(u);
+    const double k = smoothstep(0.32, 0.38, u);
+    return {base.eye + k * (away_eye - base.eye), base.target + k * (wall - base.target),
+            base.roll_rad + k * (start.roll_rad - base.roll_rad)};
+  }
+  if (u < 0.52) {
+    const View arrive = close_view(0.52);
+    const double k = smoothstep(0.38, 0.52, u);
+    return {away_eye + k * (arrive.eye - away_eye), wall, start.roll_rad + k * (arrive.roll_rad - start.roll_rad)};
+  }
+  // Turning back pans the view (its azimuth and elevation about the eye),
+  // not a straight line from the wall to the organ, which passes by the eye.
+  const View base = close_view(u);
+  const double k = smoothstep(0.52, 0.62, u);
+  const Vec3 from = wall - base.eye, to = base.target - base.eye;
+  const double az0 = std::atan2(from.y(), from.x()), el0 = std::atan2(from.z(), from.head<2>().norm());
+  const double az1 = std::atan2(to.y(), to.x()), el1 = std::atan2(to.z(), to.head<2>().norm());
+  const double turn = std::remainder(az1 - az0, 2.0 * M_PI);  // the shorter way round
+  return {base.eye, base.eye + spherical(az0 + k * turn, el0 + k * (el1 - el0), to.norm()), base.roll_rad};
+}
+
+Trajectory::View Trajectory::close_view(double u) const {
+  const double s = std::clamp((u - 0.52) / 0.48, 0.0, 1.0);  // 0 on arrival, 1 at the end
+  const double az = azimuth0_ + (38.0 + 100.0 + 50.0 * s) * kDeg;
+  const double el = (28.0 + 6.0 * std::sin(M_PI * s)) * kDeg;
+  const Vec3 target(0.0, 0.0, 0.25 * box_.max.z());
+  // The eye on the ray from the target where the nearest organ vertex is
+  // kClose away: coming in from outside in 8 mm steps, then halving the
+  // last step.
+  constexpr double kClose = 38.0;
+  const Vec3 d = spherical(az, el, 1.0);
+  const auto nearest = [&](double t) {
+    const Vec3 eye = target + t * d;
+    double best = 1e30;
+    for (const Vec3& p : organ_world_) best = std::min(best, (p - eye).squaredNorm());
+    return std::sqrt(best);
+  };
+  double outside = 400.0, inside = outside;
+  while (inside > 0.0 && nearest(inside) > kClose) {
+    outside = inside;
+    inside -= 8.0;
+  }
+  for (int i = 0; i < 12; ++i) {
+    const double mid = 0.5 * (inside + outside);
+    (nearest(mid) > kClose ? outside : inside) = mid;
+  }
+  const double reach = outside - kClose;
+  return {target + (reach + kClose) * d, target, 8.0 * kDeg * std::sin(2.0 * M_PI * s)};
 }
 
 Trajectory::View Trajectory::manipulation_view(double u) const {
@@ -163,6 +229,7 @@ WorldState Trajectory::at(double frame) const {
   switch (kind_) {
     case ScenarioKind::Fast: v = fast_view(u); break;
     case ScenarioKind::OutOfView: v = outofview_view(u); break;
+    case ScenarioKind::NewView: v = newview_view(u); break;
     case ScenarioKind::Manipulation: v = manipulation_view(u); break;
     case ScenarioKind::Orbit:
     case ScenarioKind::InVivo: v = orbit_view(u); break;

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/base/result.h"
 #include "core/geometry/se3.h"
@@ -18,7 +19,7 @@ namespace st::sim {
 // Fraction of the frame interval the shutter is open (motion blur).
 inline constexpr double kDefaultShutter = 0.5;
 
-enum class ScenarioKind { Orbit, Fast, OutOfView, Manipulation, InVivo };
+enum class ScenarioKind { Orbit, Fast, OutOfView, Manipulation, InVivo, NewView };
 
 Result<ScenarioKind> parse_scenario(std::string_view name);
 const char* scenario_name(ScenarioKind kind);
@@ -55,6 +56,8 @@ class Trajectory {
   View orbit_view(double u) const;
   View fast_view(double u) const;
   View outofview_view(double u) const;
+  View newview_view(double u) const;
+  View close_view(double u) const;  // newview after the return: near, from the far side
   View manipulation_view(double u) const;
   SE3 organ_motion(double u) const;  // T_world_model
   SE3 instrument_pose(double u, const SE3& T_world_model) const;
@@ -67,6 +70,7 @@ class Trajectory {
   Vec3 grasp_model_;    // instrument contact point on the organ, model frame
   Vec3 hover_world_;    // where the instrument tip waits when not grasping
   Vec3 trocar_world_;   // the instrument's port in the abdominal wall
+  std::vector<Vec3> organ_world_;  // organ vertices at rest, world (every 4th): newview's surface distances
   double scale_ = 1.0;  // organ size / 150 mm: bigger organs are viewed from farther
   double azimuth0_;
   double phase_;
