@@ -117,7 +117,8 @@ void print_result(const RunStats& s, const Pinhole& frames, const Pinhole& worki
 
 // The console link (--stream): listening before the first frame; nullptr
 // (with a message) when it cannot be had.
-std::unique_ptr<StreamLink> start_stream_link(const ReplayArgs& a, const LoadedSequence& seq) {
+// frames: the camera of the frames the tracking thread gets.
+std::unique_ptr<StreamLink> start_stream_link(const ReplayArgs& a, const LoadedSequence& seq, const CameraModel& frames) {
   StreamLinkConfig lc;
   std::string error;
   if (!platform::parse_endpoint(a.stream, &lc.endpoint, &error)) {
@@ -127,7 +128,7 @@ std::unique_ptr<StreamLink> start_stream_link(const ReplayArgs& a, const LoadedS
   lc.wait_consoles = a.stream_wait;
   lc.texture_every = a.texture_every;
   auto link = std::make_unique<StreamLink>();
-  Status s = link->configure(lc, seq);
+  Status s = link->configure(lc, seq, frames);
   if (s) {
     std::fprintf(stderr, "scopetrack: streaming to consoles on %s\n", link->endpoint().to_string().c_str());
     s = link->start();
@@ -214,7 +215,8 @@ int run_replay(Args argv) {
   }
   std::unique_ptr<StreamLink> link;
   if (!args.stream.empty()) {
-    link = start_stream_link(args, seq.value());
+    // The capture hands on frames at the working size (run_replay).
+    link = start_stream_link(args, seq.value(), processor->working_camera());
     if (!link) return 1;
   }
   ReplayOptions opt;

@@ -5,7 +5,7 @@
 
 namespace st::app {
 
-Status StreamLink::configure(const StreamLinkConfig& config, const LoadedSequence& seq) {
+Status StreamLink::configure(const StreamLinkConfig& config, const LoadedSequence& seq, const CameraModel& frames) {
   config_ = config;
   fps_ = seq.config.fps;
   StreamHello hello;
@@ -20,17 +20,18 @@ Status StreamLink::configure(const StreamLinkConfig& config, const LoadedSequenc
   sc.endpoint = config.endpoint;
   if (Status s = sink_.configure(sc, hello); !s) return s;
 
+  // The console's Hello keeps the sequence's own calibration; the texture
+  // thread works on the frames as the tracking thread gets them.
   TextureConfig tc;
-  tc.width = seq.config.width;
-  tc.height = seq.config.height;
+  tc.width = frames.pinhole().width;
+  tc.height = frames.pinhole().height;
   tc.downscale =
       config.texture_downscale > 0 ? config.texture_downscale : (tc.width <= 960 ? 1 : 2);
   // C420jpeg (and no tag: the Y4M default) is full range; the other 4:2:0 tags are ffmpeg's studio
   // range.
   const std::string& tag = seq.video_header.chroma_tag;
   tc.full_range = tag.empty() || tag == "420jpeg";
-  return texture_.configure(seq.mesh, CameraModel(seq.config.K, seq.config.distortion), tc,
-                            config.texture_slots, &sink_);
+  return texture_.configure(seq.mesh, frames, tc, config.texture_slots, &sink_);
 }
 
 Status StreamLink::start() {

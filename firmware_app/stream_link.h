@@ -23,7 +23,7 @@ struct StreamLinkConfig {
   int texture_every =
       0;  // 0: texture keyframes (and the initial frame); k: every k-th frame with a pose
   int texture_slots = 4;
-  int texture_downscale = 0;   // 0: 1 up to 960 px wide, else 2
+  int texture_downscale = 0;   // 0: 1 up to 960 px wide, else 2 (of the frames textured)
   double flush_timeout_s = 5;  // at the end: time for consoles to read what is queued
 };
 
@@ -35,7 +35,9 @@ PoseSample pose_sample(const FrameRef& frame, const TrackResult& r, double laten
 
 class StreamLink : public FrameObserver {
  public:
-  Status configure(const StreamLinkConfig& config, const LoadedSequence& sequence);
+  // frames: the camera of the frames frame_done() will get (the sequence's,
+  // or the tracker's working camera when the capture scales to it).
+  Status configure(const StreamLinkConfig& config, const LoadedSequence& sequence, const CameraModel& frames);
   const platform::Endpoint& endpoint() const { return sink_.endpoint(); }
   // Starts both threads; then waits for config.wait_consoles consoles
   // (an error when they do not come in time).

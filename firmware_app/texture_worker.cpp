@@ -45,15 +45,19 @@ void TextureWorker::start() {
 
 bool TextureWorker::try_submit(const FrameRef& frame, const SE3& T_camera_model) {
   const TextureConfig& c = texture_.config();
-  if (!thread_.joinable() || frame.y.width != c.width || frame.y.height != c.height) return false;
+  // The frame at the working size when the source made one (the camera
+  // given to configure() must be that size's).
+  const bool work = !frame.y_work.empty();
+  const GrayView y = work ? frame.y_work : frame.y, u = work ? frame.u_work : frame.u, v = work ? frame.v_work : frame.v;
+  if (!thread_.joinable() || y.width != c.width || y.height != c.height) return false;
   int i = -1;
   if (!free_.try_pop(&i)) return false;
   Slot& s = slots_[static_cast<std::size_t>(i)];
-  copy_plane(frame.y, &s.y);
-  s.mono = frame.u.empty() || frame.v.empty();
+  copy_plane(y, &s.y);
+  s.mono = u.empty() || v.empty();
   if (!s.mono) {
-    copy_plane(frame.u, &s.u);
-    copy_plane(frame.v, &s.v);
+    copy_plane(u, &s.u);
+    copy_plane(v, &s.v);
   }
   s.T_camera_model = T_camera_model;
   work_.try_push(i);  // cannot fail: at most slots_.size() (< capacity) indices circulate

@@ -32,6 +32,7 @@ class TrackerProcessor : public FrameProcessor {
   CalibrationCheck calibration_check() const { return tracker_.calibration_check(); }
   // The size the tracker works at (TrackerConfig::working_width).
   Pinhole working_pinhole() const { return tracker_.working_camera().pinhole(); }
+  CameraModel working_camera() const { return tracker_.working_camera(); }
 
  private:
   Tracker tracker_;

@@ -6,12 +6,15 @@
 // from next() until release(). With pacing (pace_fps > 0), frame i is
 // handed over at start + i / pace_fps, like a camera.
 //
-// With set_working_size(), the capture thread also brings each frame to
-// the tracker's working size (core/image/area_scale.h) into buffers of the
-// same ring: the tracking thread then starts from the small frame, and
-// the full one stays for the texture thread and the console.
+// With set_working_size(), the capture thread brings each frame to the
+// tracker's working size (core/image/area_scale.h) into a ring of working
+// buffers and hands on that frame alone (FrameRef::y_work etc.; y, u and v
+// empty): the frame at the video's size is read into one slot and dropped
+// once scaled, so the memory the ring takes follows the working size, not
+// the video's (the texture thread takes the working frame too).
 //
-// Threads: open()/set_working_size()/start()/stop() on the owner;
+// Threads: open()/set_working_size()/start()/stop() on the owner (start()
+// allocates the ring at the video's size when no working size was set);
 // next()/release() on the one consumer (the tracking thread), which
 // allocate nothing and never touch the file. The capture thread allocates
 // nothing after open() and set_working_size().

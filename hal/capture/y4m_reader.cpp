@@ -13,6 +13,13 @@ namespace st {
 namespace {
 constexpr std::size_t kInputBufferBytes = 64 * 1024;
 constexpr std::size_t kMaxRingBytes = std::size_t{2} << 30;  // all slots together
+
+Status check_ring_slots(int ring_slots) {
+  if (ring_slots < 1 || ring_slots > kMaxRingSlots)
+    return make_error("Y4M reader: ring of " + std::to_string(ring_slots) + " slots, must be 1.." +
+                      std::to_string(kMaxRingSlots));
+  return Status::Ok();
+}
 }  // namespace
 
 Y4mReader::~Y4mReader() { close(); }
@@ -44,9 +51,7 @@ Status Y4mReader::open_fd(int fd, bool take_ownership, int ring_slots, const std
 }
 
 Status Y4mReader::start(int ring_slots) {
-  if (ring_slots < 1 || ring_slots > kMaxRingSlots)
-    return make_error("Y4M reader: ring of " + std::to_string(ring_slots) + " slots, must be 1.." +
-                      std::to_string(kMaxRingSlots));
+  if (Status s = check_ring_slots(ring_slots); !s) return s;  // before any read
   in_buf_.assign(kInputBufferBytes, 0);
   line_buf_.assign(kMaxY4mLineBytes + 1, 0);
   error_.reserve(512);
@@ -55,10 +60,20 @@ Status Y4mReader::start(int ring_slots) {
   Result<Y4mHeader> h = parse_y4m_header(line);
   if (!h) return make_error(name_ + ": " + h.message());
   header_ = h.value();
+  return set_ring_slots(ring_slots);
+}
+
+Status Y4mReader::set_ring_slots(int ring_slots) {
+  if (Status s = check_ring_slots(ring_slots); !s) return s;
+  if (frames_read_ > 0) return make_error(name_ + ": the ring is sized before the first frame is read");
   if (header_.frame_bytes() * static_cast<std::size_t>(ring_slots) > kMaxRingBytes)
     return make_error(name_ + ": a ring of " + std::to_string(ring_slots) + " frames of " +
                       std::to_string(header_.frame_bytes()) + " bytes is too large");
-  slots_.assign(static_cast<std::size_t>(ring_slots), std::vector<std::uint8_t>(header_.frame_bytes()));
+  // One slot at a time: no prototype frame beside the ring (at 4K one
+  // more frame, 12 MB, at the peak of the resident memory).
+  std::vector<std::vector<std::uint8_t>>().swap(slots_);
+  slots_.resize(static_cast<std::size_t>(ring_slots));
+  for (std::vector<std::uint8_t>& s : slots_) s.assign(header_.frame_bytes(), 0);
   return Status::Ok();
 }
 

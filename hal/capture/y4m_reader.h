@@ -23,7 +23,8 @@ struct FrameRef {
   ImageView<const std::uint8_t> y;     // luma, width x height
   ImageView<const std::uint8_t> u, v;  // 4:2:0 chroma (half size, rounded up); empty for mono
   // The same frame at the tracker's working size, when the source made it
-  // (Y4mCapture::set_working_size); empty otherwise.
+  // (Y4mCapture::set_working_size: then y, u and v are empty, the frame at
+  // the source's size is not kept); empty otherwise.
   ImageView<const std::uint8_t> y_work, u_work, v_work;
 };
 
@@ -54,6 +55,9 @@ class Y4mReader {
   const std::string& error() const { return error_; }
   int frames_read() const { return frames_read_; }
   int ring_slots() const { return static_cast<int>(slots_.size()); }
+  // After open(), before the first read_frame(): a ring of ring_slots
+  // frames instead (allocates; the old slots are freed).
+  Status set_ring_slots(int ring_slots);
   void close();
 
  private:

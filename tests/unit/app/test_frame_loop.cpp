@@ -192,7 +192,7 @@ TEST_CASE("y4m capture: stop() ends a capture that waits for its ring, and the s
   whole.stop();
 }
 
-TEST_CASE("y4m capture: each frame also at the tracker's working size, made on the capture thread") {
+TEST_CASE("y4m capture: each frame at the tracker's working size, made on the capture thread, the video's size dropped") {
   const auto dir = test::scratch_dir("y4m_capture_working");
   Y4mWriter w;
   open_video(&w, dir / "v.y4m", 96, 54);
@@ -231,18 +231,32 @@ TEST_CASE("y4m capture: each frame also at the tracker's working size, made on t
   CHECK_FALSE(capture.set_working_size(48, 27).ok());  // not while running
   SourceFrame f;
   int frames = 0;
-  bool all_same = true, full_kept = true;
+  bool all_same = true, full_dropped = true;
   Image<std::uint8_t> y(64, 36), u(32, 18), v(32, 18);
-  const test::AllocationCounter counter;
-  for (;;) {
-    capture.next(&f);
-    if (f.kind != SourceFrame::Kind::kFrame) break;
-    const auto k = static_cast<std::size_t>(f.frame.index);
+  const auto matches = [&](const SourceFrame& g) {
+    const auto k = static_cast<std::size_t>(g.frame.index);
     luma.scale(Y[k].cview(), y.view());
     chroma.scale(U[k].cview(), u.view());
     chroma.scale(V[k].cview(), v.view());
-    all_same = all_same && same(f.frame.y_work, y) && same(f.frame.u_work, u) && same(f.frame.v_work, v);
-    full_kept = full_kept && same(f.frame.y, Y[k]) && same(f.frame.u, U[k]);
+    return same(g.frame.y_work, y) && same(g.frame.u_work, u) && same(g.frame.v_work, v);
+  };
+  const test::AllocationCounter counter;
+  // The ring's three frames held at once (the reader has read on into its
+  // one slot for the video's size): each still its own frame.
+  SourceFrame held[3];
+  for (SourceFrame& h : held) capture.next(&h);
+  for (const SourceFrame& h : held) {
+    REQUIRE(h.kind == SourceFrame::Kind::kFrame);
+    all_same = all_same && matches(h);
+    ++frames;
+  }
+  for (int i = 0; i < 3; ++i) capture.release();
+  for (;;) {
+    capture.next(&f);
+    if (f.kind != SourceFrame::Kind::kFrame) break;
+    all_same = all_same && matches(f);
+    // Only the working size is handed on.
+    full_dropped = full_dropped && f.frame.y.empty() && f.frame.u.empty() && f.frame.v.empty();
     ++frames;
     capture.release();
   }
@@ -250,7 +264,7 @@ TEST_CASE("y4m capture: each frame also at the tracker's working size, made on t
   capture.stop();
   CHECK(frames == 6);
   CHECK(all_same);
-  CHECK(full_kept);
+  CHECK(full_dropped);
   CHECK(allocations == 0);  // next() and release() on the tracking thread
 
   Y4mCapture own_size;  // the video's own size: nothing made
