@@ -80,7 +80,10 @@ Trajectory::Trajectory(ScenarioKind kind, const Scene& scene, int frames, std::u
   const double side = azimuth0_ - 70.0 * kDeg;  // away from the orbit sweep
   hover_world_ = Vec3(0.05 * box_.size().x(), -0.1 * box_.size().y(), box_.max.z() + 6.0);
   trocar_world_ = Vec3(0, 0, 0) + spherical(side, 50.0 * kDeg, 260.0);
-  for (int i = 0; i < scene.organ.vertex_count(); i += 4) organ_world_.push_back(T_world_model_rest_ * scene.organ.vertex(i));
+  if (kind_ == ScenarioKind::NewView) {  // close_view's surface distances
+    for (int i = 0; i < scene.organ.vertex_count(); i += 4) organ_world_.push_back(T_world_model_rest_ * scene.organ.vertex(i));
+    arrival_ = close_view(0.52);  // constant: where the travel ends
+  }
 }
 
 Trajectory::View Trajectory::orbit_view(double u) const {
@@ -137,9 +140,8 @@ Trajectory::View Trajectory::newview_view(double u) const {
             base.roll_rad + k * (start.roll_rad - base.roll_rad)};
   }
   if (u < 0.52) {
-    const View arrive = close_view(0.52);
     const double k = smoothstep(0.38, 0.52, u);
-    return {away_eye + k * (arrive.eye - away_eye), wall, start.roll_rad + k * (arrive.roll_rad - start.roll_rad)};
+    return {away_eye + k * (arrival_.eye - away_eye), wall, start.roll_rad + k * (arrival_.roll_rad - start.roll_rad)};
   }
   // Turning back pans the view (its azimuth and elevation about the eye),
   // not a straight line from the wall to the organ, which passes by the eye.
@@ -177,8 +179,7 @@ Trajectory::View Trajectory::close_view(double u) const {
     const double mid = 0.5 * (inside + outside);
     (nearest(mid) > kClose ? outside : inside) = mid;
   }
-  const double reach = outside - kClose;
-  return {target + (reach + kClose) * d, target, 8.0 * kDeg * std::sin(2.0 * M_PI * s)};
+  return {target + outside * d, target, 8.0 * kDeg * std::sin(2.0 * M_PI * s)};
 }
 
 Trajectory::View Trajectory::manipulation_view(double u) const {

@@ -70,7 +70,8 @@ class Trajectory {
   Vec3 grasp_model_;    // instrument contact point on the organ, model frame
   Vec3 hover_world_;    // where the instrument tip waits when not grasping
   Vec3 trocar_world_;   // the instrument's port in the abdominal wall
-  std::vector<Vec3> organ_world_;  // organ vertices at rest, world (every 4th): newview's surface distances
+  std::vector<Vec3> organ_world_;  // newview: organ vertices at rest, world (every 4th)
+  View arrival_{};                 // newview: close_view at the end of the travel
   double scale_ = 1.0;  // organ size / 150 mm: bigger organs are viewed from farther
   double azimuth0_;
   double phase_;
