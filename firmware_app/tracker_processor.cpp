@@ -12,6 +12,8 @@ Status TrackerProcessor::configure(const TrackerConfig& config, const Mesh& mesh
   ba_submitted_ = ba_applied_ = 0;
   occluder_frames_ = occluder_pixels_ = occluder_refused_ = 0;
   dim_frames_ = low_contrast_frames_ = 0;
+  noise_ratio_ = -1;
+  denoise_ = false;
   min_fast_scale_ = 1.0;
   use_ba_ = false;
   mesh_triangles_ = mesh.triangle_count();
@@ -56,6 +58,8 @@ TrackResult TrackerProcessor::step(const FrameRef& frame) {
     min_fast_scale_ = std::min(min_fast_scale_, static_cast<double>(r.fast_threshold_scale));
   }
   low_contrast_frames_ += r.low_contrast ? 1 : 0;
+  if (r.noise_ratio >= 0) noise_ratio_ = r.noise_ratio;
+  denoise_ = r.denoise;
   return r;
 }
 
@@ -77,6 +81,8 @@ void TrackerProcessor::append_summary(std::vector<std::pair<std::string, double>
   fields->emplace_back("dim_frames", static_cast<double>(dim_frames_));
   fields->emplace_back("min_fast_threshold_scale", min_fast_scale_);
   fields->emplace_back("low_contrast_frames", static_cast<double>(low_contrast_frames_));
+  fields->emplace_back("noise_ratio", noise_ratio_);
+  fields->emplace_back("features_denoise", denoise_ ? 1.0 : 0.0);
   const CalibrationCheck cal = tracker_.calibration_check();
   fields->emplace_back("calibration_tests", cal.tests);
   fields->emplace_back("calibration_max_f", cal.max_f);

@@ -92,6 +92,9 @@ class OrbExtractor {
   // intensity difference shrinks with the light (see TrackerConfig::
   // fast_reference_luma). 1 (the default) = the configured thresholds.
   void set_threshold_scale(float s);
+  // Turns OrbConfig::denoise on or off for the next extract() calls (no
+  // allocation: the filter's buffer is made by configure() either way).
+  void set_denoise(bool on) { config_.denoise = on; }
   float threshold_scale() const { return threshold_scale_; }
   int strict_threshold() const { return strict_threshold_; }    // in use
   int relaxed_threshold() const { return relaxed_threshold_; }  // in use

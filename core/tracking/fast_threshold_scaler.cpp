@@ -36,9 +36,26 @@ FastThresholdScale FastThresholdScaler::measure(GrayView luma, GrayView organ, G
 }
 
 double FastThresholdScaler::organ_contrast(GrayView luma, GrayView organ, GrayView valid) {
+  double contrast = -1.0;
+  measure_places(luma, organ, valid, &contrast, nullptr);
+  return contrast;
+}
+
+double FastThresholdScaler::organ_noise_ratio(GrayView luma, GrayView organ, GrayView valid) {
+  double contrast = -1.0, fine = -1.0;
+  measure_places(luma, organ, valid, &contrast, &fine);
+  if (contrast < 0 || fine < 0) return -1.0;
+  if (contrast > 0) return fine / contrast;
+  return fine > 0 ? 1e3 : 0.0;
+}
+
+// The medians of organ_contrast() and (fine) of the pixel-level
+// differences at the same places, luma units; -1 where no place qualifies.
+void FastThresholdScaler::measure_places(GrayView luma, GrayView organ, GrayView valid, double* contrast,
+                                         double* fine) {
   constexpr int kStep = 16, kBlock = 4;
   constexpr int kBins = 1024;  // in 1/16 luma units (block sums of 16 pixels)
-  std::array<int, kBins> hist{};
+  std::array<int, kBins> hist{}, hist_fine{};
   long long n = 0;
   const GrayView& v = valid;
   const auto block = [&](int x, int y) {
@@ -46,6 +63,17 @@ double FastThresholdScaler::organ_contrast(GrayView luma, GrayView organ, GrayVi
     for (int j = 0; j < kBlock; ++j) {
       const std::uint8_t* row = luma.row(y + j) + x;
       for (int i = 0; i < kBlock; ++i) sum += row[i];
+    }
+    return sum;
+  };
+  // Sum over the block at (x, y) of each pixel's differences to its right
+  // and lower neighbours (inside the 8x8 area organ_contrast reads).
+  const auto pixel_differences = [&](int x, int y) {
+    int sum = 0;
+    for (int j = 0; j < kBlock; ++j) {
+      const std::uint8_t* row = luma.row(y + j) + x;
+      const std::uint8_t* below = luma.row(y + j + 1) + x;
+      for (int i = 0; i < kBlock; ++i) sum += std::abs(row[i + 1] - row[i]) + std::abs(below[i] - row[i]);
     }
     return sum;
   };
@@ -58,11 +86,13 @@ double FastThresholdScaler::organ_contrast(GrayView luma, GrayView organ, GrayVi
       const int b = block(x, y);
       const int d = std::abs(block(x + kBlock, y) - b) + std::abs(block(x, y + kBlock) - b);
       ++hist[static_cast<std::size_t>(std::min(d, kBins - 1))];
+      if (fine) ++hist_fine[static_cast<std::size_t>(std::min(pixel_differences(x, y), kBins - 1))];
       ++n;
     }
   }
-  if (n == 0) return -1.0;
-  return static_cast<double>(histogram_rank(hist, (n - 1) / 2)) / (kBlock * kBlock);
+  if (n == 0) return;
+  *contrast = static_cast<double>(histogram_rank(hist, (n - 1) / 2)) / (kBlock * kBlock);
+  if (fine) *fine = static_cast<double>(histogram_rank(hist_fine, (n - 1) / 2)) / (kBlock * kBlock);
 }
 
 }  // namespace st

@@ -77,6 +77,8 @@ Status validate_tracker_settings(const TrackerConfig& c) {
     return err("contour_min_lines must be in [6, " + std::to_string(RegionModality::kMaxLines) + "]");
   if (!(c.contour_max_sigma_px >= 0 && c.contour_max_sigma_px <= 1000))
     return err("contour_max_sigma_px must be in [0, 1000]");
+  if (!(c.denoise_noise_ratio >= 0 && c.denoise_noise_ratio <= 1000))
+    return err("denoise_noise_ratio must be in [0, 1000]");
   if (!(c.contour_max_joint_sigma_px >= 0 && c.contour_max_joint_sigma_px <= 1000))
     return err("contour_max_joint_sigma_px must be in [0, 1000]");
   if (!(c.contour_agreement_px >= 0 && c.contour_agreement_px <= 1000))

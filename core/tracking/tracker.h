@@ -66,15 +66,24 @@ struct TrackerConfig {
   //   share and the map drifts until tracking is lost
   //   (docs/design-notes.md, "The organ's outline").
   // features.denoise (keypoints from the frame through a 3x3 binomial
-  // filter) stays off: it halves the losses of noisy smooth tissue and
-  // breaks photo-textured tissue at 640x360 (docs/results.md, "Denoised
-  // keypoints").
+  // filter) on forces the filter; off, denoise_noise_ratio decides it.
   OrbConfig features = [] {
     OrbConfig c;
     c.organ_margin_px = -4;
     c.organ_patch_inside = true;
     return c;
   }();
+  // The filter follows the frame's noise: at initialisation, where the
+  // organ's pixel-level contrast is at least this many times its contrast
+  // between 4x4 blocks (FastThresholdScaler::organ_noise_ratio: about 4
+  // for white noise, 1 or less for texture), the keypoints of the whole
+  // run come from the filtered frame: there sensor noise makes corners of
+  // its own that no other frame repeats, and the filter halves the losses
+  // of noisy smooth tissue; where texture dominates the pixel level (a
+  // photo texture at 640x360) the filter takes the detail the features
+  // need (docs/results.md, "Denoised keypoints"). 2: the noise and the
+  // texture equal. 0: never.
+  double denoise_noise_ratio = 2.5;
   // Pseudo-segmentation.
   bool use_mask = true;            // false: --no-mask ablation (whole valid image)
   int raster_downscale = 2;        // mask/depth raster at 1/2 resolution
@@ -328,6 +337,8 @@ struct TrackResult {
   float fast_threshold_scale = 1.f;  // FAST thresholds scaled for a dim or veiled frame (fast_reference_luma,
                                      // fast_reference_contrast)
   bool low_contrast = false;         // the contrast, not the luma, set fast_threshold_scale
+  double noise_ratio = -1;           // initialisation only: organ_noise_ratio() of the frame (-1: not measured)
+  bool denoise = false;              // the keypoints come from the filtered frame (features.denoise)
   bool calibration_suspect = false;  // the calibration was judged suspect (at this frame or before)
   float calibration_focal_scale = 1.f;  // ... the focal scale the video fits (CalibrationCheck)
 };

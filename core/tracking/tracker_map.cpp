@@ -20,6 +20,14 @@ TrackResult TrackerImpl::initialise(GrayView luma, int frame_index) {
   double t = now_ms();
   render_at(T_init_);
   lap(Stage::kRaster, &t, &r);
+  // The filter for the whole run, from the organ at the registered pose.
+  bool denoise = config_.features.denoise;
+  if (!denoise && config_.denoise_noise_ratio > 0) {
+    r.noise_ratio = FastThresholdScaler::organ_noise_ratio(luma, config_.use_mask ? raster_.mask() : GrayView{},
+                                                           valid_view_);
+    denoise = r.noise_ratio >= config_.denoise_noise_ratio;
+  }
+  orb_.set_denoise(denoise);
   extract(luma, true, &r);
   lap(Stage::kDetect, &t, &r);
   map_.clear();

@@ -318,19 +318,26 @@ TEST_CASE("app_e2e: fast bursts (seed 4, 640x360): no biased map after a burst, 
 // one wrong frame of the 36 smooth sequences in docs/results.md). The
 // outline measured from that pose puts the organ 29.8 px away, 8.7 times
 // its own sigma, and the frame is lost instead
-// (TrackerConfig::contour_check_inliers).
+// (TrackerConfig::contour_check_inliers). Keypoints from the raw frame, as
+// measured: this tissue's noise ratio (2.5) now has them come from the
+// filtered frame (TrackerConfig::denoise_noise_ratio), whose features give
+// no wrong pose here with or without the check.
 TEST_CASE("app_e2e: the outline refuses a blurred frame's wrong feature pose (smooth fast seed 3, breathing)" *
           doctest::timeout(test::budget_s(600)) * doctest::test_suite(test::kLongSuite)) {
   const auto dir = test::scratch_dir("app_e2e_outline_veto");
   simulate(dir / "seq", 150, "1280x720", 3, "fast", " --tissue smooth --organ-detail 0.5 --breathing 3");
-  const EvalReport report = track_evaluate(dir, kDeterministic);
+  const std::string raw_frame = " --set denoise_noise_ratio=0";
+  const EvalReport report = track_evaluate(dir, kDeterministic + raw_frame);
   CHECK(report.result.init_ok);
   CHECK(report.result.wrong_pct == 0.0);
   CHECK(summary_number(dir / "out", "outline_vetoes") >= 1);
   CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);  // the check allocates nothing
   const EvalResult control =
-      track_control(dir, " --set contour_check_inliers=0", "weak feature poses not checked by the outline");
+      track_control(dir, raw_frame + " --set contour_check_inliers=0", "weak feature poses not checked by the outline");
   CHECK(control.wrong_pct > 0.0);
+  const EvalResult filtered = track_control(dir, "", "keypoints from the filtered frame (the default here)");
+  CHECK(summary_number(dir / "control", "features_denoise") == 1);
+  CHECK(filtered.wrong_pct == 0.0);
 }
 
 // Fast seed 2: the first burst swings the scope ~16 deg and ~40 mm into

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <random>
+#include <algorithm>
 #include <vector>
 
 #include "core/base/capacity.h"
@@ -186,6 +188,52 @@ TEST_CASE("FAST threshold scaler: dim and flat frames scale the thresholds down,
   CHECK(scaler.measure(luma.cview(), {}, GrayView{}, builder).scale == 1.f);
   valid.fill(0);
   CHECK(FastThresholdScaler::organ_contrast(luma.cview(), {}, valid.cview()) == -1.0);
+}
+
+TEST_CASE("noise ratio: white noise about 4, texture about 1 or less, the organ mask and nothing to measure") {
+  constexpr int W = 320, H = 240;
+  Image<std::uint8_t> valid(W / 2, H / 2), luma(W, H), organ(W / 2, H / 2);
+  valid.fill(255);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 6.0);
+  const auto clamp8 = [](double v) { return static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L)); };
+  // White noise (sigma 6 on grey 128): pixel differences 2 x 6.8 a place,
+  // differences of 4x4 block means 2 x 1.7: about 4.
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) luma(x, y) = clamp8(128.0 + noise(rng));
+  const double white = FastThresholdScaler::organ_noise_ratio(luma.cview(), {}, valid.cview());
+  CHECK(white > 3.3);
+  CHECK(white < 4.7);
+  // Texture slower than a pixel (a sine of 24 px period, amplitude 20):
+  // neighbouring pixels differ by about a quarter of what 4 px apart do.
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      luma(x, y) = clamp8(128.0 + 20.0 * std::sin(2 * 3.14159265 * x / 24.0) * std::cos(2 * 3.14159265 * y / 24.0));
+  const double texture = FastThresholdScaler::organ_noise_ratio(luma.cview(), {}, valid.cview());
+  CHECK(texture < 0.6);
+  // The same texture under the noise: between the two.
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) luma(x, y) = clamp8(luma(x, y) + noise(rng));
+  const double both = FastThresholdScaler::organ_noise_ratio(luma.cview(), {}, valid.cview());
+  CHECK(both > texture);
+  CHECK(both < white);
+  // Only the organ counts: noise on the left half, texture-only on the right, organ on the left.
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      luma(x, y) = x < W / 2 ? clamp8(128.0 + noise(rng)) : clamp8(128.0 + 20.0 * std::sin(2 * 3.14159265 * x / 24.0));
+  organ.fill(0);
+  for (int y = 0; y < H / 2; ++y)
+    for (int x = 0; x < W / 4; ++x) organ(x, y) = 255;
+  CHECK(FastThresholdScaler::organ_noise_ratio(luma.cview(), organ.cview(), valid.cview()) > 3.3);
+  // Flat: no block differs and no pixel either (0); pixels that differ
+  // over blocks that do not are all noise (1e3): a 2x2 checker.
+  luma.fill(90);
+  CHECK(FastThresholdScaler::organ_noise_ratio(luma.cview(), {}, valid.cview()) == 0.0);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) luma(x, y) = static_cast<std::uint8_t>(90 + ((x + y) % 2) * 10);
+  CHECK(FastThresholdScaler::organ_noise_ratio(luma.cview(), {}, valid.cview()) == 1e3);
+  valid.fill(0);
+  CHECK(FastThresholdScaler::organ_noise_ratio(luma.cview(), {}, valid.cview()) == -1.0);
 }
 
 TEST_CASE("local map search: selects what the camera sees and finds each point's keypoint after a shift") {
