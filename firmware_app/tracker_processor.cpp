@@ -58,8 +58,10 @@ TrackResult TrackerProcessor::step(const FrameRef& frame) {
     min_fast_scale_ = std::min(min_fast_scale_, static_cast<double>(r.fast_threshold_scale));
   }
   low_contrast_frames_ += r.low_contrast ? 1 : 0;
-  if (r.noise_ratio >= 0) noise_ratio_ = r.noise_ratio;
-  denoise_ = r.denoise;
+  if (r.state == TrackState::kInitialised) {  // the filter is decided there, for the run
+    noise_ratio_ = r.noise_ratio;
+    denoise_ = r.denoise;
+  }
   return r;
 }
 

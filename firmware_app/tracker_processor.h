@@ -44,8 +44,8 @@ class TrackerProcessor : public FrameProcessor {
   std::int64_t occluder_frames_ = 0, occluder_pixels_ = 0, occluder_refused_ = 0;  // frames with an occluder mask, valid pixels removed
   std::int64_t dim_frames_ = 0;    // frames whose FAST thresholds were scaled down (fast_reference_luma or _contrast)
   std::int64_t low_contrast_frames_ = 0;  // of those, scaled for a flat texture (TrackerConfig::fast_reference_contrast)
-  double noise_ratio_ = -1;  // at initialisation (TrackerConfig::denoise_noise_ratio); -1: not measured
-  bool denoise_ = false;     // the keypoints came from the filtered frame
+  double noise_ratio_ = -1;  // at the last initialisation (TrackerConfig::denoise_noise_ratio); -1: not measured
+  bool denoise_ = false;     // its decision: the keypoints come from the filtered frame
   int mesh_triangles_ = 0;                // the mesh as given (the tracker may render a simplified copy)
   double min_fast_scale_ = 1.0;    // the smallest scale
 };

@@ -42,9 +42,8 @@ class FastThresholdScaler {
   // |I(x+1, y) - I(x, y)| + |I(x, y+1) - I(x, y)| over the 4x4 block, over
   // organ_contrast(). White noise alone gives about 4 (its pixel
   // differences against its 4x4 block means' differences); texture that
-  // varies more slowly than a pixel gives 1 or less (the simulator's
-  // procedural texture 1.0-1.2, a smooth ramp 0.25). Measured on the
-  // simulator's smooth tissue 1.5-2.9, its photo texture at 1280x720 2.0.
+  // varies more slowly than a pixel gives 1 or less (a smooth ramp 0.25;
+  // measured tissue in docs/design-notes.md, "Noisy tissue").
   // -1 when no place qualifies; where the blocks do not differ at all, 1e3
   // if the pixels do (all noise) and 0 if not (a flat image).
   static double organ_noise_ratio(GrayView luma, GrayView organ, GrayView valid);

@@ -81,8 +81,8 @@ struct TrackerConfig {
   // its own that no other frame repeats, and the filter halves the losses
   // of noisy smooth tissue; where texture dominates the pixel level (a
   // photo texture at 640x360) the filter takes the detail the features
-  // need (docs/results.md, "Denoised keypoints"). 2: the noise and the
-  // texture equal. 0: never.
+  // need (docs/results.md, "Keypoints from the filtered frame where noise
+  // dominates", says why 2.5). 0: never.
   double denoise_noise_ratio = 2.5;
   // Pseudo-segmentation.
   bool use_mask = true;            // false: --no-mask ablation (whole valid image)
@@ -338,7 +338,7 @@ struct TrackResult {
                                      // fast_reference_contrast)
   bool low_contrast = false;         // the contrast, not the luma, set fast_threshold_scale
   double noise_ratio = -1;           // initialisation only: organ_noise_ratio() of the frame (-1: not measured)
-  bool denoise = false;              // the keypoints come from the filtered frame (features.denoise)
+  bool denoise = false;              // initialisation only: the run's keypoints come from the filtered frame
   bool calibration_suspect = false;  // the calibration was judged suspect (at this frame or before)
   float calibration_focal_scale = 1.f;  // ... the focal scale the video fits (CalibrationCheck)
 };

@@ -28,6 +28,7 @@ TrackResult TrackerImpl::initialise(GrayView luma, int frame_index) {
     denoise = r.noise_ratio >= config_.denoise_noise_ratio;
   }
   orb_.set_denoise(denoise);
+  r.denoise = denoise;
   extract(luma, true, &r);
   lap(Stage::kDetect, &t, &r);
   map_.clear();

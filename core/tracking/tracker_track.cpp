@@ -36,7 +36,6 @@ bool TrackerImpl::extract(GrayView luma, bool with_organ_mask, TrackResult* r) {
   if (scale.low_contrast) r->low_contrast = true;
   orb_.set_threshold_scale(scale.scale);
   r->fast_threshold_scale = orb_.threshold_scale();
-  r->denoise = orb_.config().denoise;
   if (!orb_.extract(luma, organ, valid_view_, f)) f.clear();
   for (int k = 0; k < f.count; ++k) {
     const Keypoint& kp = f.keypoints[static_cast<std::size_t>(k)];

@@ -4,11 +4,11 @@
 // calibration test.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <memory>
 #include <random>
-#include <algorithm>
 #include <vector>
 
 #include "core/base/capacity.h"
