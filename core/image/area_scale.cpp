@@ -78,19 +78,36 @@ inline void columns_scalar(const std::uint16_t* row, const std::int32_t* first, 
 
 }  // namespace
 
+int AreaScaler::row_taps(int j) const {
+  const std::uint16_t* wy = &y_.weight[static_cast<std::size_t>(j) * static_cast<std::size_t>(y_.taps)];
+  int taps = std::min(y_.taps, in_h_ - y_.first[static_cast<std::size_t>(j)]);
+  while (taps > 1 && wy[taps - 1] == 0) --taps;
+  return taps;
+}
+
+int AreaScaler::input_row_begin(int j) const { return y_.first[static_cast<std::size_t>(j)]; }
+
+int AreaScaler::input_row_end(int j) const { return input_row_begin(j) + row_taps(j); }
+
 bool AreaScaler::scale(GrayView in, ImageView<std::uint8_t> out) {
-  if (in_w_ == 0 || in.empty() || in.width != in_w_ || in.height != in_h_ || out.width != out_w_ ||
-      out.height != out_h_ || out.data == nullptr)
+  if (in_w_ == 0 || in.empty() || in.width != in_w_ || in.height != in_h_) return false;
+  return scale_rows(in, 0, 0, out_h_, out);
+}
+
+bool AreaScaler::scale_rows(GrayView band, int band_y0, int j_begin, int j_end, ImageView<std::uint8_t> out) {
+  if (in_w_ == 0 || band.empty() || band.width != in_w_ || out.width != out_w_ || out.height != out_h_ ||
+      out.data == nullptr || j_begin < 0 || j_end > out_h_ || j_begin > j_end)
+    return false;
+  if (j_begin < j_end && (input_row_begin(j_begin) < band_y0 || input_row_end(j_end - 1) > band_y0 + band.height))
     return false;
   std::uint16_t* row = row_.data();
   const int ty = y_.taps, tx = x_.taps;
   const std::int32_t* first = x_.first.data();
   const std::uint16_t* wx = x_.weight.data();
-  for (int j = 0; j < out_h_; ++j) {
+  for (int j = j_begin; j < j_end; ++j) {
     const int y0 = y_.first[static_cast<std::size_t>(j)];
     const std::uint16_t* wy = &y_.weight[static_cast<std::size_t>(j) * static_cast<std::size_t>(ty)];
-    int taps = ty;
-    while (taps > 1 && wy[taps - 1] == 0) --taps;
+    const int taps = row_taps(j);
     // The rows: row[x] = round(sum_k wy[k] in(x, y0 + k) / 256), 8 bits in
     // 16 (the sum is at most 255 * 256 + 128).
     int x = 0;
@@ -99,7 +116,7 @@ bool AreaScaler::scale(GrayView in, ImageView<std::uint8_t> out) {
     const std::uint8_t* src[kMaxRatio + 1];
     cv::v_uint16x8 wk[kMaxRatio + 1];
     for (int k = 0; k < taps; ++k) {
-      src[k] = in.row(y0 + k);
+      src[k] = band.row(y0 - band_y0 + k);
       wk[k] = cv::v_setall_u16(wy[k]);
     }
     for (; x + 16 <= in_w_; x += 16) {
@@ -116,7 +133,7 @@ bool AreaScaler::scale(GrayView in, ImageView<std::uint8_t> out) {
 #endif
     for (; x < in_w_; ++x) {
       unsigned s = 128u;
-      for (int k = 0; k < taps; ++k) s += static_cast<unsigned>(wy[k]) * in.row(y0 + k)[x];
+      for (int k = 0; k < taps; ++k) s += static_cast<unsigned>(wy[k]) * band.row(y0 - band_y0 + k)[x];
       row[x] = static_cast<std::uint16_t>(s >> 8);
     }
     std::uint8_t* o = out.row(j);

@@ -17,8 +17,8 @@
 // mean; a flat plane stays flat.
 // Downscales up to 8x per axis (no upscaling: out <= in).
 //
-// configure() allocates (the weight tables, one row); scale() allocates
-// nothing. One scaler per thread.
+// configure() allocates (the weight tables, one row); scale() and
+// scale_rows() allocate nothing. One scaler per thread.
 #pragma once
 
 #include <cstdint>
@@ -37,6 +37,17 @@ class AreaScaler {
   Status configure(int in_w, int in_h, int out_w, int out_h);
   // False (out untouched) when the sizes differ from configure()'s.
   bool scale(GrayView in, ImageView<std::uint8_t> out);
+  // The same output from the input in pieces (a frame read in bands, never
+  // whole): output rows [j_begin, j_end) of out from band, whose row 0 is
+  // input row band_y0 and which holds every input row they need (input
+  // rows [input_row_begin(j_begin), input_row_end(j_end - 1))). Rows done
+  // band by band equal scale()'s. False (out untouched) otherwise.
+  bool scale_rows(GrayView band, int band_y0, int j_begin, int j_end, ImageView<std::uint8_t> out);
+  // The input rows output row j reads: [begin, end), both nondecreasing in
+  // j, at most max_rows_per_output() of them.
+  int input_row_begin(int j) const;
+  int input_row_end(int j) const;
+  int max_rows_per_output() const { return y_.taps; }
 
   int in_width() const { return in_w_; }
   int in_height() const { return in_h_; }
@@ -51,6 +62,7 @@ class AreaScaler {
     std::vector<std::uint16_t> weight;  // taps per output, 8-bit fixed point (sum 256)
   };
   static void make_axis(int in, int out, Axis* axis);
+  int row_taps(int j) const;  // output row j's input rows, trailing zero weights dropped
 
   int in_w_ = 0, in_h_ = 0, out_w_ = 0, out_h_ = 0;
   Axis x_, y_;
@@ -71,6 +83,8 @@ class FrameScaler {
   // size (*chroma: whether they were).
   bool scale(GrayView y, GrayView u, GrayView v, ImageView<std::uint8_t> out_y, ImageView<std::uint8_t> out_u,
              ImageView<std::uint8_t> out_v, bool* chroma);
+  AreaScaler& luma() { return luma_; }
+  AreaScaler& chroma() { return chroma_; }
 
  private:
   AreaScaler luma_, chroma_;

@@ -1,5 +1,8 @@
 #include "hal/capture/y4m_capture.h"
 
+#include <algorithm>
+#include <cstring>
+
 #include "platform/clock.h"
 
 namespace st {
@@ -12,12 +15,13 @@ Status Y4mCapture::open(const std::filesystem::path& video, int ring_slots, doub
   if (ring_slots > kMaxRingSlots)
     return make_error("capture ring of " + std::to_string(ring_slots) + " slots: at most " +
                       std::to_string(kMaxRingSlots));
-  // One slot until start(): with a working size the ring is made at that
-  // size, and a ring at the video's size allocated first would set the
-  // peak of the resident memory however soon it is freed.
-  if (Status s = reader_.open(video, 1); !s) return s;
+  // No slot until start(): with a working size the frames are read in
+  // bands and no frame at the video's size is ever held, and a ring at
+  // the video's size allocated first would set the peak of the resident
+  // memory however soon it is freed.
+  if (Status s = reader_.open(video, 0); !s) return s;
   ring_slots_ = static_cast<std::uint32_t>(ring_slots);
-  scaling_ = false;
+  scaling_ = scale_failed_ = false;
   released_.store(0, std::memory_order_relaxed);
   stop_requested_.store(false, std::memory_order_relaxed);
   fps_ = fps > 0 ? fps : 0;
@@ -36,26 +40,69 @@ Status Y4mCapture::set_working_size(int width, int height) {
   work_y_.assign(slots, Image<std::uint8_t>(width, height));
   work_u_.assign(slots, Image<std::uint8_t>(FrameScaler::chroma_size(width), FrameScaler::chroma_size(height)));
   work_v_ = work_u_;  // (a mono video's frames have no chroma: these stay unused)
-  // The frame at the video's size is needed only until it is scaled: the
-  // reader keeps its one slot (1080p: 3.1 MB instead of 18.7 MB for 6
-  // slots; 4K: 12.4 MB instead of 75).
+  // The frame at the video's size is never whole: it is read kBandRows
+  // rows at a time into one band (plus the rows an output row straddling
+  // two bands needs), each band scaled as it arrives (to 1280x720: 67 KB
+  // from 1080p instead of a 3.1 MB frame, 138 KB from 4K instead of 12.4 MB).
+  const auto band_bytes = [](const AreaScaler& a) {
+    return static_cast<std::size_t>(a.in_width()) * static_cast<std::size_t>(kBandRows + a.max_rows_per_output());
+  };
+  band_.assign(std::max(band_bytes(scaler_.luma()), band_bytes(scaler_.chroma())), 0);
   scaling_ = true;
   return Status::Ok();
 }
 
-// Frame number frame's working-size copy, into its ring slot's buffers.
-void Y4mCapture::scale_to_working(std::uint32_t frame, FrameRef* f) {
-  const std::size_t slot = frame % ring_slots_;
-  bool chroma = false;
-  scaler_.scale(f->y, f->u, f->v, work_y_[slot].view(), work_u_[slot].view(), work_v_[slot].view(), &chroma);
-  f->y_work = work_y_[slot].cview();
-  if (chroma) {
-    f->u_work = work_u_[slot].cview();
-    f->v_work = work_v_[slot].cview();
+// One plane of the frame being read, from the reader in bands into out.
+// Each band's output rows are made as soon as the rows they read are in;
+// the rows the next output row still needs move to the band's top.
+ReadResult Y4mCapture::read_plane_scaled(AreaScaler& scaler, ImageView<std::uint8_t> out) {
+  const int w = scaler.in_width(), h = scaler.in_height(), out_h = scaler.out_height();
+  const auto stride = static_cast<std::size_t>(w);
+  const int capacity = static_cast<int>(band_.size() / stride);
+  std::uint8_t* band = band_.data();
+  int band_y0 = 0, held = 0, next_row = 0, j = 0;  // band rows: input rows [band_y0, band_y0 + held)
+  while (next_row < h) {
+    const int n = std::min(capacity - held, h - next_row);
+    const ReadResult r = reader_.read_frame_data(band + static_cast<std::size_t>(held) * stride,
+                                                 static_cast<std::size_t>(n) * stride);
+    if (r != ReadResult::kFrame) return r;
+    held += n;
+    next_row += n;
+    int j_end = j;
+    while (j_end < out_h && scaler.input_row_end(j_end) <= next_row) ++j_end;
+    if (!scaler.scale_rows(GrayView(band, w, held), band_y0, j, j_end, out)) {
+      scale_failed_ = true;  // a band without the rows its output needs: not expected
+      return ReadResult::kError;
+    }
+    j = j_end;
+    const int keep = j < out_h ? scaler.input_row_begin(j) : next_row;
+    held = next_row - keep;
+    if (held > 0)
+      std::memmove(band, band + static_cast<std::size_t>(keep - band_y0) * stride,
+                   static_cast<std::size_t>(held) * stride);
+    band_y0 = keep;
   }
-  // The next read overwrites the reader's one slot: only the working size
-  // is handed on.
-  f->y = f->u = f->v = ImageView<const std::uint8_t>();
+  return ReadResult::kFrame;
+}
+
+// The next frame at the working size, into ring slot frame % ring_slots_.
+ReadResult Y4mCapture::read_scaled(std::uint32_t frame, FrameRef* f) {
+  int index = 0;
+  if (const ReadResult r = reader_.begin_frame(&index); r != ReadResult::kFrame) return r;
+  const std::size_t slot = frame % ring_slots_;
+  if (const ReadResult r = read_plane_scaled(scaler_.luma(), work_y_[slot].view()); r != ReadResult::kFrame)
+    return r;
+  *f = FrameRef{};
+  f->index = index;
+  f->y_work = work_y_[slot].cview();
+  if (reader_.header().chroma == Chroma::kMono) return ReadResult::kFrame;
+  if (const ReadResult r = read_plane_scaled(scaler_.chroma(), work_u_[slot].view()); r != ReadResult::kFrame)
+    return r;
+  if (const ReadResult r = read_plane_scaled(scaler_.chroma(), work_v_[slot].view()); r != ReadResult::kFrame)
+    return r;
+  f->u_work = work_u_[slot].cview();
+  f->v_work = work_v_[slot].cview();
+  return ReadResult::kFrame;
 }
 
 Status Y4mCapture::start() {
@@ -106,15 +153,18 @@ void Y4mCapture::run() {
   for (std::uint32_t i = 0;; ++i) {
     Message msg;
     const bool go_on = wait_for_free_slot(i);
-    const ReadResult r = go_on ? reader_.read_frame(&msg.frame) : ReadResult::kEndOfStream;
+    const ReadResult r = !go_on    ? ReadResult::kEndOfStream
+                         : scaling_ ? read_scaled(i, &msg.frame)
+                                    : reader_.read_frame(&msg.frame);
     if (r == ReadResult::kEndOfStream) {
       msg.kind = SourceFrame::Kind::kEnd;
     } else if (r == ReadResult::kError) {
-      error_.assign(reader_.error());  // capacity reserved at open (messages are < 512 bytes)
+      // Capacity reserved at open (messages are < 512 bytes).
+      error_.assign(scale_failed_ ? "Y4M capture: a band of the frame could not be scaled to the working size"
+                                  : reader_.error().c_str());
       msg.kind = SourceFrame::Kind::kError;
     } else {
       msg.kind = SourceFrame::Kind::kFrame;
-      if (scaling_) scale_to_working(i, &msg.frame);
       if (pace_fps_ > 0)
         platform::sleep_until_ns(t0_ns + static_cast<std::int64_t>(static_cast<double>(i) * 1e9 / pace_fps_));
     }

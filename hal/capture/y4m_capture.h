@@ -9,9 +9,10 @@
 // With set_working_size(), the capture thread brings each frame to the
 // tracker's working size (core/image/area_scale.h) into a ring of working
 // buffers and hands on that frame alone (FrameRef::y_work etc.; y, u and v
-// empty): the frame at the video's size is read into one slot and dropped
-// once scaled, so the memory the ring takes follows the working size, not
-// the video's (the texture thread takes the working frame too).
+// empty): the frame at the video's size is read a band of rows at a time
+// and each band scaled as it arrives, so the memory the capture takes
+// follows the working size, not the video's (the texture thread takes the
+// working frame too).
 //
 // Threads: open()/set_working_size()/start()/stop() on the owner (start()
 // allocates the ring at the video's size when no working size was set);
@@ -70,7 +71,8 @@ class Y4mCapture final : public FrameSource {
     std::int64_t t_handoff_ns = 0;
   };
   void run();
-  void scale_to_working(std::uint32_t frame, FrameRef* f);
+  ReadResult read_scaled(std::uint32_t frame, FrameRef* f);
+  ReadResult read_plane_scaled(AreaScaler& scaler, ImageView<std::uint8_t> out);
   bool wait_for_free_slot(std::uint32_t frame);  // false: stop() was asked
 
   static constexpr std::size_t kQueueCapacity = 128;  // > kMaxRingSlots + the end marker
@@ -86,6 +88,9 @@ class Y4mCapture final : public FrameSource {
   bool scaling_ = false;
   FrameScaler scaler_;
   std::vector<Image<std::uint8_t>> work_y_, work_u_, work_v_;
+  static constexpr int kBandRows = 32;  // input rows read and scaled at a time
+  std::vector<std::uint8_t> band_;      // rows of the plane being read (the video's width)
+  bool scale_failed_ = false;
 };
 
 }  // namespace st

@@ -15,9 +15,9 @@ constexpr std::size_t kInputBufferBytes = 64 * 1024;
 constexpr std::size_t kMaxRingBytes = std::size_t{2} << 30;  // all slots together
 
 Status check_ring_slots(int ring_slots) {
-  if (ring_slots < 1 || ring_slots > kMaxRingSlots)
-    return make_error("Y4M reader: ring of " + std::to_string(ring_slots) + " slots, must be 1.." +
-                      std::to_string(kMaxRingSlots));
+  if (ring_slots < 0 || ring_slots > kMaxRingSlots)
+    return make_error("Y4M reader: ring of " + std::to_string(ring_slots) + " slots, must be 0.." +
+                      std::to_string(kMaxRingSlots) + " (0: frames read in pieces)");
   return Status::Ok();
 }
 }  // namespace
@@ -44,6 +44,7 @@ Status Y4mReader::open_fd(int fd, bool take_ownership, int ring_slots, const std
   name_ = name;
   failed_ = io_error_ = false;
   frames_read_ = 0;
+  piece_bytes_ = piece_got_ = 0;
   in_pos_ = in_end_ = 0;
   Status s = start(ring_slots);
   if (!s) close();
@@ -149,9 +150,7 @@ ReadResult Y4mReader::fail(const char* fmt, ...) {
   return ReadResult::kError;
 }
 
-ReadResult Y4mReader::read_frame(FrameRef* out) {
-  if (failed_) return ReadResult::kError;
-  if (fd_ < 0 || slots_.empty()) return fail("Y4M reader: read_frame() before a successful open()");
+ReadResult Y4mReader::read_frame_line() {
   const int index = frames_read_;
   bool too_long = false;
   const std::size_t n = read_line(&too_long);
@@ -161,6 +160,47 @@ ReadResult Y4mReader::read_frame(FrameRef* out) {
   if (!line || too_long)
     return fail("%.200s: frame %d does not start with a FRAME line (%zu bytes: corrupt or truncated stream)",
                 name_.c_str(), index, n);
+  return ReadResult::kFrame;
+}
+
+ReadResult Y4mReader::begin_frame(int* index) {
+  if (failed_) return ReadResult::kError;
+  if (fd_ < 0) return fail("Y4M reader: begin_frame() before a successful open()");
+  if (piece_bytes_ != 0)
+    return fail("Y4M reader: begin_frame() with %zu bytes of frame %d still unread", piece_bytes_ - piece_got_,
+                frames_read_);
+  if (const ReadResult r = read_frame_line(); r != ReadResult::kFrame) return r;
+  piece_bytes_ = header_.frame_bytes();
+  piece_got_ = 0;
+  *index = frames_read_;
+  return ReadResult::kFrame;
+}
+
+ReadResult Y4mReader::read_frame_data(std::uint8_t* dst, std::size_t n) {
+  if (failed_) return ReadResult::kError;
+  if (piece_bytes_ == 0 || n > piece_bytes_ - piece_got_)
+    return fail("Y4M reader: read_frame_data() of %zu bytes past the end of frame %d", n, frames_read_);
+  const std::size_t got = read_bytes(dst, n);
+  if (io_error_)
+    return fail("%.200s: read error in frame %d: %s", name_.c_str(), frames_read_, std::strerror(io_errno_));
+  piece_got_ += got;
+  if (got < n)
+    return fail("%.200s: frame %d is truncated: %zu of %zu bytes present, %zu missing", name_.c_str(),
+                frames_read_, piece_got_, piece_bytes_, piece_bytes_ - piece_got_);
+  if (piece_got_ == piece_bytes_) {
+    piece_bytes_ = piece_got_ = 0;
+    ++frames_read_;
+  }
+  return ReadResult::kFrame;
+}
+
+ReadResult Y4mReader::read_frame(FrameRef* out) {
+  if (failed_) return ReadResult::kError;
+  if (fd_ < 0) return fail("Y4M reader: read_frame() before a successful open()");
+  if (slots_.empty()) return fail("Y4M reader: read_frame() on a reader opened without slots (begin_frame())");
+  if (piece_bytes_ != 0) return fail("Y4M reader: read_frame() inside a frame read in pieces");
+  const int index = frames_read_;
+  if (const ReadResult r = read_frame_line(); r != ReadResult::kFrame) return r;
   std::vector<std::uint8_t>& slot = slots_[static_cast<std::size_t>(index) % slots_.size()];
   const std::size_t got = read_bytes(slot.data(), slot.size());
   if (io_error_) return fail("%.200s: read error in frame %d: %s", name_.c_str(), index, std::strerror(io_errno_));

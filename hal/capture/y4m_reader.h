@@ -1,7 +1,8 @@
 // Y4M capture from a file, a FIFO or a pipe (path "-" = stdin, or an fd).
 // Lifecycle: open() reads the header and sizes a ring of N frame slots and
 // one input buffer (the only allocations); read_frame() then fills the next
-// slot and allocates nothing, on success or on error (messages are
+// slot, or begin_frame() and read_frame_data() hand the frame over in
+// pieces, and allocate nothing, on success or on error (messages are
 // formatted into storage reserved at open). A FrameRef stays valid until
 // N further read_frame() calls reuse its slot. Single-threaded: the capture
 // thread owns the reader.
@@ -40,7 +41,8 @@ class Y4mReader {
   Y4mReader& operator=(const Y4mReader&) = delete;
 
   // path "-" reads stdin. Blocks on a FIFO until a writer opens it and the
-  // header arrives.
+  // header arrives. ring_slots 0: no slot, frames read in pieces only
+  // (begin_frame()).
   Status open(const std::filesystem::path& path, int ring_slots = 3);
   // Reads from an already open descriptor (a pipe); closes it on close()
   // when take_ownership.
@@ -52,6 +54,15 @@ class Y4mReader {
   // which frame and how many bytes are missing; a bad FRAME line; an I/O
   // error); the reader stays in error.
   ReadResult read_frame(FrameRef* out);
+  // The next frame in pieces, into the caller's buffers (a reader opened
+  // with no slots reads this way only): begin_frame() reads the FRAME line
+  // (kFrame: *index is the frame's number), then read_frame_data() takes
+  // the frame's bytes in order (the planes as header() lays them out), n at
+  // a time, header().frame_bytes() in all; the frame counts as read once
+  // its last byte is. Errors as read_frame()'s: a frame that ends early
+  // says how many of its bytes were present.
+  ReadResult begin_frame(int* index);
+  ReadResult read_frame_data(std::uint8_t* dst, std::size_t n);
   const std::string& error() const { return error_; }
   int frames_read() const { return frames_read_; }
   int ring_slots() const { return static_cast<int>(slots_.size()); }
@@ -63,6 +74,7 @@ class Y4mReader {
  private:
   Status start(int ring_slots);
   Status read_header_line(std::string* line);
+  ReadResult read_frame_line();  // the FRAME line of frame frames_read_
   // Fills dst with n bytes (buffer first, then the descriptor); returns the count read.
   std::size_t read_bytes(std::uint8_t* dst, std::size_t n);
   // Reads one line ('\n' included) into line_buf_; returns its length, 0 at EOF.
@@ -83,6 +95,8 @@ class Y4mReader {
   bool io_error_ = false;
   int io_errno_ = 0;
   int frames_read_ = 0;
+  std::size_t piece_bytes_ = 0;  // of the frame begin_frame() started (0: none started)
+  std::size_t piece_got_ = 0;
 };
 
 }  // namespace st

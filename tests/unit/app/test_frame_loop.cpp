@@ -16,6 +16,7 @@
 #include "core/image/area_scale.h"
 #include "firmware_app/frame_loop.h"
 #include "hal/capture/y4m_capture.h"
+#include "hal/storage/file_io.h"
 #include "hal/storage/y4m_writer.h"
 #include "platform/clock.h"
 #include "support/alloc_guard.h"
@@ -192,18 +193,18 @@ TEST_CASE("y4m capture: stop() ends a capture that waits for its ring, and the s
   whole.stop();
 }
 
-TEST_CASE("y4m capture: each frame at the tracker's working size, made on the capture thread, the video's size dropped") {
+TEST_CASE("y4m capture: each frame at the tracker's working size, read in bands on the capture thread, the video's size never whole") {
   const auto dir = test::scratch_dir("y4m_capture_working");
   Y4mWriter w;
-  open_video(&w, dir / "v.y4m", 96, 54);
+  open_video(&w, dir / "v.y4m", 96, 150);
   std::vector<Image<std::uint8_t>> Y, U, V;
   for (int f = 0; f < 6; ++f) {
-    Y.emplace_back(96, 54);
-    U.emplace_back(48, 27);
-    V.emplace_back(48, 27);
-    for (int y = 0; y < 54; ++y)
+    Y.emplace_back(96, 150);
+    U.emplace_back(48, 75);
+    V.emplace_back(48, 75);
+    for (int y = 0; y < 150; ++y)
       for (int x = 0; x < 96; ++x) Y.back()(x, y) = static_cast<std::uint8_t>((x * 5 + y * 3 + f * 17) & 255);
-    for (int y = 0; y < 27; ++y)
+    for (int y = 0; y < 75; ++y)
       for (int x = 0; x < 48; ++x) {
         U.back()(x, y) = static_cast<std::uint8_t>(100 + ((x + f) % 9) * 5);
         V.back()(x, y) = static_cast<std::uint8_t>(160 - ((y + f) % 7) * 6);
@@ -213,8 +214,8 @@ TEST_CASE("y4m capture: each frame at the tracker's working size, made on the ca
   REQUIRE(w.close().ok());
   // What the capture must hand over: the area filter of each plane.
   AreaScaler luma, chroma;
-  REQUIRE(luma.configure(96, 54, 64, 36).ok());
-  REQUIRE(chroma.configure(48, 27, 32, 18).ok());
+  REQUIRE(luma.configure(96, 150, 64, 100).ok());
+  REQUIRE(chroma.configure(48, 75, 32, 50).ok());
   const auto same = [](GrayView a, const Image<std::uint8_t>& b) {
     if (a.width != b.width() || a.height != b.height()) return false;
     for (int y = 0; y < a.height; ++y)
@@ -225,14 +226,14 @@ TEST_CASE("y4m capture: each frame at the tracker's working size, made on the ca
 
   Y4mCapture capture;
   REQUIRE(capture.open(dir / "v.y4m", 3, 25.0, 0.0).ok());
-  CHECK_FALSE(capture.set_working_size(128, 54).ok());  // larger than the video
-  REQUIRE(capture.set_working_size(64, 36).ok());
+  CHECK_FALSE(capture.set_working_size(128, 150).ok());  // larger than the video
+  REQUIRE(capture.set_working_size(64, 100).ok());
   REQUIRE(capture.start().ok());
   CHECK_FALSE(capture.set_working_size(48, 27).ok());  // not while running
   SourceFrame f;
   int frames = 0;
   bool all_same = true, full_dropped = true;
-  Image<std::uint8_t> y(64, 36), u(32, 18), v(32, 18);
+  Image<std::uint8_t> y(64, 100), u(32, 50), v(32, 50);
   const auto matches = [&](const SourceFrame& g) {
     const auto k = static_cast<std::size_t>(g.frame.index);
     luma.scale(Y[k].cview(), y.view());
@@ -241,8 +242,8 @@ TEST_CASE("y4m capture: each frame at the tracker's working size, made on the ca
     return same(g.frame.y_work, y) && same(g.frame.u_work, u) && same(g.frame.v_work, v);
   };
   const test::AllocationCounter counter;
-  // The ring's three frames held at once (the reader has read on into its
-  // one slot for the video's size): each still its own frame.
+  // The ring's three frames held at once (the capture thread waits to read
+  // on): each still its own frame. 150 rows come in five bands.
   SourceFrame held[3];
   for (SourceFrame& h : held) capture.next(&h);
   for (const SourceFrame& h : held) {
@@ -269,7 +270,7 @@ TEST_CASE("y4m capture: each frame at the tracker's working size, made on the ca
 
   Y4mCapture own_size;  // the video's own size: nothing made
   REQUIRE(own_size.open(dir / "v.y4m", 2, 25.0, 0.0).ok());
-  REQUIRE(own_size.set_working_size(96, 54).ok());
+  REQUIRE(own_size.set_working_size(96, 150).ok());
   REQUIRE(own_size.start().ok());
   own_size.next(&f);
   REQUIRE(f.kind == SourceFrame::Kind::kFrame);
@@ -277,4 +278,27 @@ TEST_CASE("y4m capture: each frame at the tracker's working size, made on the ca
   CHECK(f.frame.y.width == 96);
   own_size.release();
   own_size.stop();
+
+  // A video that ends inside a frame's chroma: the frames before it, then
+  // the error with the bytes missing (nothing half-scaled handed on).
+  std::string bytes = read_file(dir / "v.y4m", 1 << 20).value();
+  bytes.resize(bytes.size() - 1000);
+  REQUIRE(write_file(dir / "t.y4m", bytes).ok());
+  Y4mCapture cut;
+  REQUIRE(cut.open(dir / "t.y4m", 2, 25.0, 0.0).ok());
+  REQUIRE(cut.set_working_size(64, 100).ok());
+  REQUIRE(cut.start().ok());
+  frames = 0;
+  for (;;) {
+    cut.next(&f);
+    if (f.kind != SourceFrame::Kind::kFrame) break;
+    ++frames;
+    cut.release();
+  }
+  cut.stop();
+  CHECK(frames == 5);
+  REQUIRE(f.kind == SourceFrame::Kind::kError);
+  INFO(cut.error());
+  CHECK(cut.error().find("frame 5 is truncated") != std::string::npos);
+  CHECK(cut.error().find("1000 missing") != std::string::npos);
 }

@@ -6,6 +6,7 @@
 // 4:2:0 frame scaler's planes.
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <opencv2/imgproc.hpp>
@@ -102,6 +103,58 @@ TEST_CASE("area scale: sizes it cannot serve are refused, frames of another size
   CHECK_FALSE(s.scale(wrong_in.cview(), out.view()));
   CHECK(out(0, 0) == 7);
   CHECK_FALSE(s.scale(Image<std::uint8_t>(1920, 1080).cview(), wrong_out.view()));
+}
+
+TEST_CASE("area scale: band by band, the rows equal the whole frame's, rows outside the band refused") {
+  struct Case {
+    int in_w, in_h, out_w, out_h;
+  };
+  std::mt19937 rng(5);
+  for (const Case c : {Case{1920, 1080, 1280, 720}, Case{3840, 2160, 1280, 720}, Case{1001, 777, 640, 497},
+                       Case{643, 361, 97, 51}}) {
+    CAPTURE(c.in_w);
+    CAPTURE(c.out_w);
+    const Image<std::uint8_t> in = scene(c.in_w, c.in_h, 11);
+    AreaScaler s;
+    REQUIRE(s.configure(c.in_w, c.in_h, c.out_w, c.out_h).ok());
+    Image<std::uint8_t> whole(c.out_w, c.out_h), banded(c.out_w, c.out_h);
+    REQUIRE(s.scale(in.cview(), whole.view()));
+    banded.fill(0);
+    // Bands of random heights: each scales the output rows whose input
+    // rows it completes, from the first row the next output row needs.
+    int j = 0, next_row = 0;
+    while (next_row < c.in_h) {
+      const int keep = j < c.out_h ? s.input_row_begin(j) : next_row;
+      next_row = std::min(c.in_h, next_row + std::uniform_int_distribution<int>(1, 40)(rng));
+      int j_end = j;
+      while (j_end < c.out_h && s.input_row_end(j_end) <= next_row) ++j_end;
+      CHECK(j_end - j <= next_row - keep);
+      REQUIRE(s.scale_rows(in.cview().sub(0, keep, c.in_w, next_row - keep), keep, j, j_end, banded.view()));
+      j = j_end;
+    }
+    CHECK(j == c.out_h);
+    CHECK(std::equal(whole.data(), whole.data() + static_cast<std::ptrdiff_t>(c.out_w) * c.out_h, banded.data()));
+    for (int k = 1; k < c.out_h; ++k) {
+      CHECK(s.input_row_begin(k) >= s.input_row_begin(k - 1));
+      CHECK(s.input_row_end(k) >= s.input_row_end(k - 1));
+      CHECK(s.input_row_end(k) - s.input_row_begin(k) <= s.max_rows_per_output());
+    }
+  }
+  AreaScaler s;
+  REQUIRE(s.configure(1920, 1080, 1280, 720).ok());
+  const Image<std::uint8_t> in = scene(1920, 1080, 12);
+  Image<std::uint8_t> out(1280, 720);
+  out.fill(7);
+  // Output row 10 reads input rows 15 and 16: a band from row 16 lacks one,
+  // a band of rows 0-15 lacks the other.
+  CHECK(s.input_row_begin(10) == 15);
+  CHECK(s.input_row_end(10) == 17);
+  CHECK_FALSE(s.scale_rows(in.cview().sub(0, 16, 1920, 100), 16, 10, 11, out.view()));
+  CHECK_FALSE(s.scale_rows(in.cview().sub(0, 0, 1920, 16), 0, 10, 11, out.view()));
+  CHECK_FALSE(s.scale_rows(in.cview(), 0, 10, 721, out.view()));
+  CHECK_FALSE(s.scale_rows(in.cview(), 0, 11, 10, out.view()));
+  CHECK(out(0, 10) == 7);
+  CHECK(s.scale_rows(in.cview().sub(0, 15, 1920, 2), 15, 10, 11, out.view()));
 }
 
 TEST_CASE("area scale: scaling allocates nothing") {

@@ -1,5 +1,6 @@
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <fstream>
 #include <sys/stat.h>
@@ -102,6 +103,68 @@ TEST_CASE("y4m_reader: truncated frame says which frame and how many bytes are m
   CHECK(r.read_frame(&f) == ReadResult::kError);
 }
 
+TEST_CASE("y4m_reader: frames in pieces, with no slot: the same bytes, truncation counted, misuse refused") {
+  const auto dir = test::scratch_dir("y4m_pieces");
+  write_test_video(dir / "v.y4m", 33, 17, 3, Chroma::k420);
+  Y4mReader whole, pieces;
+  REQUIRE(whole.open(dir / "v.y4m", 1).ok());
+  REQUIRE(pieces.open(dir / "v.y4m", 0).ok());
+  CHECK(pieces.ring_slots() == 0);
+  const std::size_t frame_bytes = pieces.header().frame_bytes();
+  std::vector<std::uint8_t> buf(frame_bytes);
+  test::AllocationCounter allocs;
+  for (int i = 0; i < 3; ++i) {
+    FrameRef f;
+    REQUIRE(whole.read_frame(&f) == ReadResult::kFrame);
+    int index = -1;
+    REQUIRE(pieces.begin_frame(&index) == ReadResult::kFrame);
+    CHECK(index == i);
+    // Pieces of 1, 100 and the rest: the frame's bytes as read whole.
+    REQUIRE(pieces.read_frame_data(buf.data(), 1) == ReadResult::kFrame);
+    REQUIRE(pieces.read_frame_data(buf.data() + 1, 100) == ReadResult::kFrame);
+    CHECK(pieces.frames_read() == i);  // not read until its last byte
+    REQUIRE(pieces.read_frame_data(buf.data() + 101, frame_bytes - 101) == ReadResult::kFrame);
+    CHECK(pieces.frames_read() == i + 1);
+    CHECK(std::equal(buf.begin(), buf.end(), f.y.data));  // the slot holds Y, U and V in a row
+  }
+  int index = -1;
+  CHECK(pieces.begin_frame(&index) == ReadResult::kEndOfStream);
+  CHECK(allocs.count() == 0);
+
+  // A frame that ends early: which frame, how many of its bytes were there.
+  std::string bytes = read_file(dir / "v.y4m", 1 << 20).value();
+  bytes.resize(bytes.size() - 300);
+  REQUIRE(write_file(dir / "t.y4m", bytes).ok());
+  REQUIRE(pieces.open(dir / "t.y4m", 0).ok());
+  for (int i = 0; i < 2; ++i) {
+    REQUIRE(pieces.begin_frame(&index) == ReadResult::kFrame);
+    REQUIRE(pieces.read_frame_data(buf.data(), frame_bytes) == ReadResult::kFrame);
+  }
+  REQUIRE(pieces.begin_frame(&index) == ReadResult::kFrame);
+  REQUIRE(pieces.read_frame_data(buf.data(), 200) == ReadResult::kFrame);
+  CHECK(pieces.read_frame_data(buf.data(), frame_bytes - 200) == ReadResult::kError);
+  INFO(pieces.error());
+  CHECK(pieces.error().find("frame 2 is truncated: " + std::to_string(frame_bytes - 300) + " of " +
+                            std::to_string(frame_bytes) + " bytes present, 300 missing") != std::string::npos);
+  CHECK(pieces.begin_frame(&index) == ReadResult::kError);  // stays failed
+
+  // Misuse: more bytes than the frame has, a new frame before the last
+  // one's end, read_frame() without slots.
+  REQUIRE(pieces.open(dir / "v.y4m", 0).ok());
+  FrameRef f;
+  CHECK(pieces.read_frame(&f) == ReadResult::kError);
+  CHECK(pieces.error().find("without slots") != std::string::npos);
+  REQUIRE(pieces.open(dir / "v.y4m", 0).ok());
+  REQUIRE(pieces.begin_frame(&index) == ReadResult::kFrame);
+  CHECK(pieces.read_frame_data(buf.data(), frame_bytes + 1) == ReadResult::kError);
+  CHECK(pieces.error().find("past the end of frame 0") != std::string::npos);
+  REQUIRE(pieces.open(dir / "v.y4m", 0).ok());
+  REQUIRE(pieces.begin_frame(&index) == ReadResult::kFrame);
+  REQUIRE(pieces.read_frame_data(buf.data(), 10) == ReadResult::kFrame);
+  CHECK(pieces.begin_frame(&index) == ReadResult::kError);
+  CHECK(pieces.error().find("still unread") != std::string::npos);
+}
+
 TEST_CASE("y4m_reader: bad streams fail at open with clear errors") {
   const auto dir = test::scratch_dir("y4m_bad");
   Y4mReader r;
@@ -118,7 +181,8 @@ TEST_CASE("y4m_reader: bad streams fail at open with clear errors") {
   CHECK_FALSE(r.open(dir / "zero.y4m").ok());
   CHECK_FALSE(r.open(dir / "missing.y4m").ok());
   REQUIRE(write_file(dir / "ok.y4m", format_y4m_header(4, 2, 25, 1)).ok());
-  CHECK_FALSE(r.open(dir / "ok.y4m", 0).ok());
+  CHECK_FALSE(r.open(dir / "ok.y4m", -1).ok());
+  CHECK_FALSE(r.open(dir / "ok.y4m", kMaxRingSlots + 1).ok());
   REQUIRE(r.open(dir / "ok.y4m", 2).ok());
   FrameRef f;
   CHECK(r.read_frame(&f) == ReadResult::kEndOfStream);  // a header alone is an empty video
