@@ -144,7 +144,6 @@ class SchurSolver {
   double model_cost_change() const;
   void make_candidate();
   void accept_candidate();
-  void swap_linearization();
   double elapsed_s(std::int64_t t0_ns, const SchurSolverOptions& o) const;
 
   SchurResidualConfig res_;
@@ -180,15 +179,6 @@ class SchurSolver {
   std::vector<Linearization> lin_obs_;
   // Focal scale (one more reduced column when free).
   double x_focal_ = 1, cand_focal_ = 1, step_focal_ = 0, g_focal_ = 0, U_ff_ = 0, diag_focal_ = 0;
-  // The candidate's linearization (evaluated with its cost, swapped in on
-  // acceptance): the spare set of lin_obs_, U_, g_pose_, U_focal_, V_,
-  // g_point_, W_focal_, shape_r_, shape_J_, U_ff_, g_focal_.
-  std::vector<Linearization> lin_obs_b_;
-  std::vector<Mat6> U_b_;
-  std::vector<Vec6> g_pose_b_, U_focal_b_;
-  std::vector<Mat3> V_b_, shape_J_b_;
-  std::vector<Vec3> g_point_b_, W_focal_b_, shape_r_b_;
-  double U_ff_b_ = 0, g_focal_b_ = 0;
   // The reduced system's 6x6 keyframe blocks while the points are
   // eliminated (block (a, b), a >= b, at a * free keyframes + b): fixed-size
   // and contiguous, copied into S_ for the Cholesky.
