@@ -75,10 +75,13 @@ Status DirectAligner::configure(int width, int height, double scale) {
     s *= 2.0;
   }
   ref_image_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), 0);
-  // The frame's valid mask is at most the frame itself.
+  // The reference's valid mask as sampled at the finest level (eroded when
+  // the reference is built), not the frame's own: 0.9 MB less per aligner
+  // at 1280x720. The frame's valid mask is at most the frame itself.
+  ref_valid_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), 0);
   const auto full_w = static_cast<std::size_t>(std::ceil(width * scale)) + 2;
   const auto full_h = static_cast<std::size_t>(std::ceil(height * scale)) + 2;
-  ref_valid_.assign(full_w * full_h, 0);
+  max_valid_pixels_ = full_w * full_h;
   valid_col_.assign(static_cast<std::size_t>(width), 0);
   p_model_.assign(kMaxPoints, Vec3::Zero());
   intensity_.assign(kMaxPoints, 0.0);
@@ -92,6 +95,12 @@ Status DirectAligner::configure(int width, int height, double scale) {
 // so that the edge of the field stop, which does not move with the scene,
 // never pulls the alignment.
 void DirectAligner::sample_valid(GrayView valid, std::uint8_t* mask) {
+  sample_mask(valid, mask);
+  erode_mask(mask);
+}
+
+// The valid mask at the finest level's pixels (1: valid), nearest sample.
+void DirectAligner::sample_mask(GrayView valid, std::uint8_t* mask) {
   const Level& l = levels_[0];
   const int w = l.w, h = l.h;
   const double full_w = l.w * l.scale, full_h = l.h * l.scale;
@@ -110,6 +119,10 @@ void DirectAligner::sample_valid(GrayView valid, std::uint8_t* mask) {
       for (int x = 0; x < w; ++x) out[x] = vrow[valid_col_[static_cast<std::size_t>(x)]] != 0 ? 1 : 0;
     }
   }
+}
+
+void DirectAligner::erode_mask(std::uint8_t* mask) {
+  const int w = levels_[0].w, h = levels_[0].h;
   // Erode (a pixel stays valid only if its 4-neighbours are), in place:
   // bit 0 keeps each pixel's sampled value for the neighbours still to come,
   // bit 1 collects the result, shifted down at the end.
@@ -199,16 +212,13 @@ void DirectAligner::keep_reference(GrayView image, GrayView valid, const SE3& T_
   have_reference_ = false;
   const Level& l0 = levels_[0];
   if (!configured_ || image.width != l0.w || image.height != l0.h || !T_camera_model.all_finite() ||
-      static_cast<std::size_t>(valid.width) * static_cast<std::size_t>(valid.height) > ref_valid_.size())
+      static_cast<std::size_t>(valid.width) * static_cast<std::size_t>(valid.height) > max_valid_pixels_)
     return;
   // Copies only (this runs on every tracked frame); the levels are built
   // when align() needs them, which most references never are.
   for (int y = 0; y < l0.h; ++y)
     std::copy_n(image.row(y), l0.w, ref_image_.data() + static_cast<std::ptrdiff_t>(y) * l0.w);
-  ref_valid_w_ = valid.empty() ? 0 : valid.width;
-  ref_valid_h_ = valid.empty() ? 0 : valid.height;
-  for (int y = 0; y < ref_valid_h_; ++y)
-    std::copy_n(valid.row(y), ref_valid_w_, ref_valid_.data() + static_cast<std::ptrdiff_t>(y) * ref_valid_w_);
+  sample_mask(valid, ref_valid_.data());
   T_reference_ = T_camera_model;
   have_reference_ = true;
   reference_built_ = false;
@@ -217,8 +227,8 @@ void DirectAligner::keep_reference(GrayView image, GrayView valid, const SE3& T_
 // The reference's levels from its copies; false if none of it is valid.
 bool DirectAligner::build_reference() {
   Level& l0 = levels_[0];
-  sample_valid(ref_valid_w_ > 0 ? GrayView(ref_valid_.data(), ref_valid_w_, ref_valid_h_) : GrayView(),
-               l0.ref_mask.data());
+  std::copy(ref_valid_.begin(), ref_valid_.end(), l0.ref_mask.begin());
+  erode_mask(l0.ref_mask.data());
   // Intensities are kept relative to the reference's mean over its valid
   // pixels (the current image gets the same factor, so a brightness change
   // stays visible to the gain parameter).

@@ -124,7 +124,9 @@ class DirectAligner {
     std::vector<float> ref, cur, gx, gy, tmp;
     std::vector<std::uint8_t> ref_mask, cur_mask;
   };
-  void sample_valid(GrayView valid, std::uint8_t* mask);
+  void sample_valid(GrayView valid, std::uint8_t* mask);  // sample_mask(), then erode_mask()
+  void sample_mask(GrayView valid, std::uint8_t* mask);
+  void erode_mask(std::uint8_t* mask);
   bool build_reference();
   void build_half(Level* half, const Level& full, bool reference);
   void gradients(Level* l);
@@ -139,11 +141,12 @@ class DirectAligner {
   bool configured_ = false, have_reference_ = false, reference_built_ = false;
   SE3 T_reference_;
   float inv_scale_ = 1.f;  // 1 / the reference's mean intensity (both images are scaled by it)
-  // The reference as handed over: its image and valid mask (0 x 0: all
-  // valid); the levels are built from them when align() needs them.
+  // The reference as handed over: its image and its valid mask sampled
+  // at the finest level (sample_mask()); the levels are built from them
+  // when align() needs them.
   std::vector<std::uint8_t> ref_image_, ref_valid_;
-  std::vector<std::int32_t> valid_col_;  // sample_valid's column table (finest level's width)
-  int ref_valid_w_ = 0, ref_valid_h_ = 0;
+  std::vector<std::int32_t> valid_col_;  // sample_mask's column table (finest level's width)
+  std::size_t max_valid_pixels_ = 0;     // the largest valid mask accepted (the frame's size)
   // Reference points of the level being solved: model coordinates and intensity.
   std::vector<Vec3> p_model_;
   std::vector<double> intensity_;
