@@ -129,7 +129,6 @@ Status ImagePyramid::configure(int width, int height, int levels, float scale_fa
     const int w = std::max(1, static_cast<int>(std::lround(width / static_cast<double>(scale_[k]))));
     const int h = std::max(1, static_cast<int>(std::lround(height / static_cast<double>(scale_[k]))));
     levels_img_[k].allocate(w, h);
-    smooth_img_[k].allocate(width, h);  // rows of the level-0 width: one stride for all levels
     if (k > 0) {
       make_axis_table(w, levels_img_[k - 1].width(), tables_[k].x0, tables_[k].wx);
       make_axis_table(h, levels_img_[k - 1].height(), tables_[k].y0, tables_[k].wy);
@@ -140,6 +139,7 @@ Status ImagePyramid::configure(int width, int height, int levels, float scale_fa
       }
     }
   }
+  smooth_.allocate(width, height);
   row_tmp_.assign(static_cast<std::size_t>(width) + 16, 0);
   blur_tmp_.assign(static_cast<std::size_t>(width) + 16, 0);
   denoise_row_.assign(static_cast<std::size_t>(width) + 16, 0);
@@ -261,11 +261,8 @@ void ImagePyramid::denoise_level0(GrayView image) {
   }
 }
 
-bool ImagePyramid::build(GrayView image) {
-  if (!build_levels(image)) return false;
-  for (int k = 0; k < levels_; ++k)
-    gaussian_blur7(levels_img_[k].cview(), smooth_view(k), blur_tmp_.data());
-  return true;
+void ImagePyramid::smooth_level(int k) {
+  gaussian_blur7(levels_img_[k].cview(), smooth_view(k), blur_tmp_.data());
 }
 
 // Same passes as gaussian_blur7, restricted to runs of consecutive marked

@@ -1,9 +1,11 @@
 // ImagePyramid: N levels, each 1/scale_factor the size of the one above
 // (bilinear, chained from the previous level like cv::ORB), plus a smoothed
-// copy of every level (7-tap Gaussian, sigma ~2) that rBRIEF samples
-// (stored with the level-0 row stride).
+// copy (7-tap Gaussian, sigma ~2) that rBRIEF samples, of one level at a
+// time: the extractor describes a level's keypoints before it smooths the
+// next, so one level-0-sized buffer serves every level (1280x720: 0.9 MB
+// instead of 4.2 for a copy per level, each at the level-0 stride).
 //
-// configure() allocates every level once; build() allocates nothing.
+// configure() allocates every level once; nothing else allocates.
 // Level 0 is copied so that the pyramid owns every pixel it hands out (the
 // caller's frame buffer may be re-queued to the camera right after).
 // Single-threaded: one instance per thread.
@@ -23,16 +25,17 @@ class ImagePyramid {
  public:
   // levels in [1, kMaxPyramidLevels], scale_factor in (1, 2].
   Status configure(int width, int height, int levels, float scale_factor);
-  // image must be width x height (as configured); returns false otherwise.
-  bool build(GrayView image);
-  // The levels only, without smoothing: smoothed(k) is then valid only in
-  // the tiles passed to smooth_tiles() afterwards. Allocates nothing.
+  // The levels (image must be width x height as configured; false
+  // otherwise), without smoothing. Allocates nothing.
   // denoise: level 0 is the image through a 3x3 binomial filter ([1 2 1]
   // across and down, / 16, edges replicated), and every level with it.
   bool build_levels(GrayView image, bool denoise = false);
+  // Level k's smoothing, into the one smoothing buffer: smoothed(k) is
+  // level k's until another level is smoothed. Allocates nothing.
+  void smooth_level(int k);
   // Smooths the kSmoothTilePx x kSmoothTilePx tiles of level k whose byte in
-  // tiles (tiles_x per row) is non-zero; bit-identical to the whole-level
-  // smoothing of build() there. Allocates nothing.
+  // tiles (tiles_x per row) is non-zero; bit-identical to smooth_level(k)
+  // there, and smoothed(k) valid only there. Allocates nothing.
   // 16: ~25% fewer pixels smoothed than 32 (for patches of radius 15).
   static constexpr int kSmoothTilePx = 16;
   void smooth_tiles(int k, const std::uint8_t* tiles, int tiles_x);
@@ -43,7 +46,7 @@ class ImagePyramid {
   // Smoothed levels share one row stride (the level-0 width), so rBRIEF
   // steps through all of them with one table of pixel offsets.
   GrayView smoothed(int k) const {
-    return GrayView(smooth_img_[k].data(), levels_img_[k].width(), levels_img_[k].height(), width_);
+    return GrayView(smooth_.data(), levels_img_[k].width(), levels_img_[k].height(), width_);
   }
   int width() const { return width_; }
   int height() const { return height_; }
@@ -56,13 +59,12 @@ class ImagePyramid {
   };
   void resize_level(int k);
   ImageView<std::uint8_t> smooth_view(int k) {
-    return ImageView<std::uint8_t>(smooth_img_[k].data(), levels_img_[k].width(),
-                                   levels_img_[k].height(), width_);
+    return ImageView<std::uint8_t>(smooth_.data(), levels_img_[k].width(), levels_img_[k].height(), width_);
   }
   static void horizontal_blend(const std::uint16_t* tmp, const ResizeTables& t, std::uint8_t* out,
                                int width);
   std::array<Image<std::uint8_t>, kMaxPyramidLevels> levels_img_;
-  std::array<Image<std::uint8_t>, kMaxPyramidLevels> smooth_img_;
+  Image<std::uint8_t> smooth_;  // the level smoothed last (level-0 size)
   std::array<ResizeTables, kMaxPyramidLevels> tables_;
   std::array<float, kMaxPyramidLevels> scale_{};
   std::vector<std::uint16_t> row_tmp_;  // one vertically blended row (resize)
