@@ -158,19 +158,25 @@ VertexProjection project_vertices(const LoadedSequence& s) {
 }
 
 // The mesh rendered at T_init (ideal pinhole: the rasteriser ignores lens
-// distortion, a good approximation for the covered fraction).
+// distortion, a good approximation for the covered fraction), at most
+// kCoverageWidth wide: a fraction and a depth range need no more, and a
+// render at 4K (83 MB of targets) set the replay's peak memory before the
+// tracker had allocated anything.
 struct Coverage {
   double fraction = 0.0;
   float near_mm = 0.0f, far_mm = 0.0f;
 };
+constexpr int kCoverageWidth = 1280;
 
 Result<Coverage> render_coverage(const LoadedSequence& s) {
   MeshRasterizer raster;
   RasterConfig rc;
-  rc.width = s.config.width;
-  rc.height = s.config.height;
+  const double f = std::min(1.0, static_cast<double>(kCoverageWidth) / s.config.width);
+  rc.width = std::max(1, static_cast<int>(std::lround(s.config.width * f)));
+  rc.height = std::max(1, static_cast<int>(std::lround(s.config.height * f)));
   if (Status st = raster.configure(s.mesh, rc); !st) return Error{st.message()};
-  raster.render(s.config.T_camera_model_init, s.config.K);
+  const double sx = static_cast<double>(rc.width) / s.config.width, sy = static_cast<double>(rc.height) / s.config.height;
+  raster.render(s.config.T_camera_model_init, s.config.K.scaled(sx, sy, rc.width, rc.height));
   Coverage c;
   c.fraction = static_cast<double>(raster.covered_pixels()) / (static_cast<double>(rc.width) * rc.height);
   const ImageView<const float> depth = raster.depth();
