@@ -208,6 +208,27 @@ TEST_CASE("orb extract, valid mask, grid and matching allocate nothing per frame
   CHECK(prev->count > 500);
 }
 
+TEST_CASE("orb extract: never more keypoints than n_features (the map sizes a keyframe's links by it)") {
+  const cv::Mat real = real_frame_luma(1280, 720);
+  REQUIRE(!real.empty());
+  cv::Mat noise_img(720, 1280, CV_8UC1);
+  cv::randu(noise_img, cv::Scalar(0), cv::Scalar(256));  // a corner nearly everywhere, on every level
+  const cv::Mat& noise = noise_img;
+  auto out = std::make_unique<FeatureSet>();
+  for (const int n : {50, 300, 1500, kMaxKeypoints}) {
+    OrbConfig c;
+    c.n_features = n;
+    OrbExtractor orb;
+    REQUIRE(orb.configure(c, 1280, 720));
+    for (const cv::Mat* img : {&real, &noise}) {
+      REQUIRE(orb.extract(view_of(*img), GrayView(), GrayView(), *out));
+      CAPTURE(n);
+      CHECK(out->count <= n);
+      CHECK(out->count >= std::min(n, 40));
+    }
+  }
+}
+
 TEST_CASE("orb fast9: corners agree with cv::FAST (TYPE_9_16, non-max suppression)") {
   const cv::Mat img = real_frame_luma(1280, 720);
   REQUIRE(!img.empty());
