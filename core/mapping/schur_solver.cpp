@@ -497,7 +497,6 @@ void SchurSolver::make_candidate() {
   cand_focal_ = x_focal_ + step_focal_;
 }
 
-// Exchanges the linearization at x with the spare set (no copy, no allocation).
 void SchurSolver::accept_candidate() {
   for (int k = 0; k < keyframe_count_; ++k) {
     const auto ks = static_cast<std::size_t>(k);
@@ -536,12 +535,6 @@ SchurSolver::Iteration SchurSolver::iterate(const SchurSolverOptions& o, LmState
   double candidate_cost = 0.0;
   const bool candidate_ok = evaluate(true, true, &candidate_cost);
   if (!candidate_ok) candidate_cost = std::numeric_limits<double>::max();
-  const auto reject = [&] {
-    double cost_at_x = 0.0;
-    if (!evaluate(false, true, &cost_at_x)) it.end = IterationEnd::kFailure;  // evaluated before: not expected
-    s->radius /= s->decrease;
-    s->decrease *= 2.0;
-  };
   if (s->any_success && step_norm() <= o.parameter_tolerance * (parameter_norm() + o.parameter_tolerance)) {
     it.end = IterationEnd::kConverged;
     return it;
@@ -553,7 +546,10 @@ SchurSolver::Iteration SchurSolver::iterate(const SchurSolverOptions& o, LmState
   const double rho = (s->cost - candidate_cost) / change;
   if (!(rho > o.min_relative_decrease)) {
     it.cost = candidate_cost;  // Ceres reports a rejected step's cost (its final_cost is the minimum)
-    reject();
+    double cost_at_x = 0.0;
+    if (!evaluate(false, true, &cost_at_x)) it.end = IterationEnd::kFailure;  // evaluated before: not expected
+    s->radius /= s->decrease;
+    s->decrease *= 2.0;
     return it;
   }
   accept_candidate();

@@ -214,8 +214,9 @@ void DirectAligner::keep_reference(GrayView image, GrayView valid, const SE3& T_
   if (!configured_ || image.width != l0.w || image.height != l0.h || !T_camera_model.all_finite() ||
       static_cast<std::size_t>(valid.width) * static_cast<std::size_t>(valid.height) > max_valid_pixels_)
     return;
-  // Copies only (this runs on every tracked frame); the levels are built
-  // when align() needs them, which most references never are.
+  // A copy and the mask's sampling only (this runs on every tracked
+  // frame); the levels are built when align() needs them, which most
+  // references never are.
   for (int y = 0; y < l0.h; ++y)
     std::copy_n(image.row(y), l0.w, ref_image_.data() + static_cast<std::ptrdiff_t>(y) * l0.w);
   sample_mask(valid, ref_valid_.data());
