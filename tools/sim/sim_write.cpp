@@ -9,6 +9,7 @@
 #include "hal/storage/file_io.h"
 #include "hal/storage/mesh_file.h"
 #include "hal/storage/y4m_writer.h"
+#include "tools/sim/breathing.h"
 #include "tools/sim/sim_run.h"
 #include "tools/sim/yuv.h"
 
@@ -55,6 +56,9 @@ Result<SimReport> run_simulation(const SimOptions& o, const FrameSink& sink) {
   SceneRenderer renderer;
   if (Status st = renderer.configure(s.scene, s.render); !st) return make_error(st.message());
   const Trajectory traj(o.scenario, s.scene, s.frames, o.seed);
+  // Ground truth: the camera in the organ's rigid frame, which moves with
+  // the organ while it breathes (breathing.h).
+  const BreathingField breathing(s.scene.organ, s.render.breathing_mm);
   const int W = s.render.K.width, H = s.render.K.height;
   Y4mHeader header;
   header.width = W;
@@ -72,7 +76,8 @@ Result<SimReport> run_simulation(const SimOptions& o, const FrameSink& sink) {
     renderer.render(traj, i, rgb, labels);
     rgb_to_yuv420_jpeg(rgb, Y.view(), U.view(), V.view());
     if (Status st = video.write(Y.cview(), U.cview(), V.cview()); !st) return make_error(st.message());
-    r.groundtruth.push_back(TimedPose{i / s.fps, traj.at(i).T_model_camera()});
+    const WorldState state = traj.at(i);
+    r.groundtruth.push_back(TimedPose{i / s.fps, breathing.rigid_motion(state.breath).inverse() * state.T_model_camera()});
     if (i == 0) r.markers = pick_markers(renderer.visible_organ_points(traj.at(0), labels, std::max(6, W / 80), 4));
     if (sink) sink(i, rgb, labels);
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
