@@ -109,7 +109,8 @@ Status validate_tracker_settings(const TrackerConfig& c) {
         "registration prior out of range (both sigmas 0, or both finite and > 0; keyframes >= 0; "
         "release F >= 0)");
   if (!(c.keyframe_max_motion_px > 0.f)) return err("keyframe_max_motion_px must be positive");
-  if (c.reloc_keyframes_per_frame < 1 || c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
+  if (c.reloc_keyframes_per_frame < 1 || c.reloc_min_matches < 4 || c.reloc_min_matches > kMaxKeypoints ||
+      c.strict_frames < 0 || !(c.strict_inlier_factor >= 1.0) ||
       c.min_spread_cells < 0 || c.min_spread_cells > 16 || !(c.dead_reckoning_decay > 0.0) ||
       !(c.dead_reckoning_decay <= 1.0))
     return err("relocalisation settings out of range");
@@ -201,7 +202,7 @@ Status TrackerImpl::configure(const TrackerConfig& input_config, const Mesh& mes
   }
   if (Status s = solver_.configure(kMaxKeypoints); !s.ok()) return make_error("tracker: pose: " + s.message());
   PnpRansacOptions ro;
-  ro.min_inliers = config.min_inliers;
+  ro.min_inliers = config.reloc_min_matches;
   ro.max_iterations = 300;
   if (Status s = ransac_.configure(kMaxKeypoints, ro); !s.ok()) return make_error("tracker: RANSAC: " + s.message());
   // A keyframe links each of its frame's keypoints to one map point at

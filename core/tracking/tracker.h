@@ -203,6 +203,7 @@ struct TrackerConfig {
                                           // since the last one (level-0 px at the tracked depth): blurred
   // Relocalisation and the stricter gates after it.
   int reloc_keyframes_per_frame = 2;    // brute-force budget per lost frame
+  int reloc_min_matches = 15;           // brute-force matches (and RANSAC inliers) to try a keyframe's pose
   int strict_frames = 5;                // frames after relocalisation under strict gates
   int dead_reckoning_frames = 10;       // lost: predict with the last velocity for this many frames
   double dead_reckoning_decay = 0.7;    // lost: the carried velocity's twist shrinks by this per frame

@@ -111,7 +111,8 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
 // points, a P3P RANSAC pose, then tracking by projection from it.
 bool TrackerImpl::reloc_with_keyframe(int keyframe_id, PoseEstimate* e, TrackResult* r) {
   const FeatureSet& f = *features_;
-  if (reloc_keyframes_.match(map_, keyframe_id, f, config_.min_inliers, &matcher_) < config_.min_inliers) return false;
+  const int min_matches = config_.reloc_min_matches;
+  if (reloc_keyframes_.match(map_, keyframe_id, f, min_matches, &matcher_) < min_matches) return false;
   int c = 0;
   for (int q = 0; q < f.count; ++q) {
     const int point = reloc_keyframes_.matched_point(q);
@@ -124,7 +125,7 @@ bool TrackerImpl::reloc_with_keyframe(int keyframe_id, PoseEstimate* e, TrackRes
     corr_kp_[cs] = q;
   }
   corr_count_ = c;
-  if (c < config_.min_inliers) return false;
+  if (c < min_matches) return false;
   const Correspondences corr{corr_p_.data(), corr_px_.data(), corr_info_.data(), c};
   SE3 T;
   PnpRansacSummary s;

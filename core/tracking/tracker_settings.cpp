@@ -111,6 +111,7 @@ const std::array kKeys = {
                "no keyframe from a frame whose view moved more (blurred), level-0 pixels"),
     // Lost: dead reckoning and relocalisation.
     ST_SETTING(reloc_keyframes_per_frame, 1, kMaxKeyframes, "keyframes matched by brute force a lost frame"),
+    ST_SETTING(reloc_min_matches, 4, kMaxKeypoints, "brute-force matches (and RANSAC inliers) to try a keyframe"),
     ST_SETTING(strict_frames, 0, 1000, "frames under the stricter gates after a relocalisation"),
     ST_SETTING(dead_reckoning_frames, 0, 1000, "lost: frames predicted with the last velocity"),
     ST_SETTING(dead_reckoning_decay, 0.01, 1, "lost: the carried velocity shrinks by this a frame"),
