@@ -184,6 +184,13 @@ struct TrackerConfig {
   // contour_check_inliers 0: never.
   int contour_check_inliers = 90;
   double contour_veto_px = 20.0;
+  // While lost, an outline that places the organ on its own (lines and
+  // sigma as above) but lies farther than wide_radius_px from the shading's
+  // pose (or the shading measured nothing) is a guess of its own: the
+  // features are tracked from it (reported only under the stricter gates
+  // of relocalisation), and when dead reckoning measured nothing it is the
+  // next frame's guess.
+  bool outline_guess = true;
   // Descriptor matching (core/features/orb_matcher.h): max_distance (of 256
   // bits), the ratio test, the orientation check.
   MatchConfig matching;
@@ -322,7 +329,7 @@ struct TrackResult {
   double contour_rms_px = 0;
   double contour_sigma_px = -1;
   double joint_sigma_px = -1;     // the outline's and the shading's pose together (when both measured)
-  SE3 T_outline, T_shading;       // each one's pose alone (outline_tried; diagnostics)
+  SE3 T_outline, T_shading;       // each one's pose alone (outline_tried; T_outline can be a lost frame's guess)
   double modality_agreement_px = -1;
   Agreement agreement = Agreement::kNoOutline;
   bool keyframe = false;          // a keyframe was inserted this frame

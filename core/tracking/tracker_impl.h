@@ -66,6 +66,7 @@ class TrackerImpl {
   SE3 motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted);
   bool dead_reckon(SE3* T_camera_model, const SE3& T_alternative, DirectAlignSummary* fit = nullptr);
   bool track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackResult* r);
+  bool outline_is_a_guess(const TrackResult& r) const;
   bool outline_refutes(const PoseEstimate& e, TrackResult* r);
   double outline_sigma_px(const SE3& T, const ContourFit& fit, Mat6* H_out = nullptr) const;
   void learn_colours(const SE3& T, float rate, bool force = false);

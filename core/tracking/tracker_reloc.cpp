@@ -10,7 +10,9 @@
 // it passes the normal gates, as a tracked frame would; and a pose that
 // fails only the inlier ratio, down to confirmed_min_inlier_ratio, if
 // direct alignment against the anchor confirms it (TrackerConfig,
-// confirmed poses). Tracking thread; allocates nothing.
+// confirmed poses). Last, an outline that places the organ by itself far
+// from the shading's guess is tried as a guess of its own
+// (TrackerConfig::outline_guess). Tracking thread; allocates nothing.
 #include <algorithm>
 #include <cmath>
 
@@ -101,10 +103,48 @@ TrackResult TrackerImpl::relocalise(GrayView luma, int frame_index) {
     fill_measures(by_outline, &r);
     accept(by_outline, frame_index, TrackState::kRelocalised, &r);
     velocity_ = lost_velocity_;  // measured frame to frame by dead reckoning
-  } else {
-    r.state = TrackState::kLost;
+    return r;
+  }
+  r.state = TrackState::kLost;
+  if (!outline_is_a_guess(r)) return r;
+  // The outline placed the organ on its own, far from the shading's pose
+  // (after a swing the shading's alignment against the last tracked frame
+  // fails or slides off; the outline is measured in this frame alone). The
+  // features tracked from it must pass the stricter gates, as a brute-force
+  // pose must: the outline brings the guess within reach, it does not
+  // vouch for the pose.
+  t = now_ms();
+  render_at(r.T_outline);
+  for (int k = 0; k < features_->count; ++k) kp_inlier_[static_cast<std::size_t>(k)] = 0;
+  PoseEstimate from_outline;
+  if (track_from(r.T_outline, config_.search_radius_px, &from_outline, &r) && PoseGates::passes(from_outline, strict)) {
+    lap(Stage::kReloc, &t, &r);
+    reloc_seed_ok_ = true;
+    strict_frames_left_ = config_.strict_frames;
+    fill_measures(from_outline, &r);
+    accept(from_outline, frame_index, TrackState::kRelocalised, &r);
+    return r;
+  }
+  lap(Stage::kReloc, &t, &r);
+  // Nothing measured the motion: the outline's pose is the next frame's
+  // guess, with no velocity (one taken from outline poses diverges).
+  if (!measured) {
+    T_dead_reckoned_ = r.T_outline;
+    lost_velocity_ = SE3::Identity();
   }
   return r;
+}
+
+// A lost frame's outline (track_by_outline() measured it) that is a guess
+// of its own: enough lines, the organ fixed to contour_max_sigma_px by them
+// alone, and the shading's pose unmeasured or farther than the wide search
+// radius from it (where the two are that far apart, tracking from the
+// shading's guess cannot reach the outline's pose).
+bool TrackerImpl::outline_is_a_guess(const TrackResult& r) const {
+  if (!config_.use_contour || !config_.outline_guess || !r.outline_tried || r.features == 0) return false;
+  if (r.contour_lines < config_.contour_min_lines || !(r.contour_sigma_px <= config_.contour_max_sigma_px))
+    return false;
+  return r.modality_agreement_px < 0.0 || r.modality_agreement_px > static_cast<double>(config_.wide_radius_px);
 }
 
 // Brute-force matches of this frame against one keyframe's linked map

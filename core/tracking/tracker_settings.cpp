@@ -100,6 +100,7 @@ const std::array kKeys = {
     ST_SETTING(contour_agreement_px, 0, 1000, "outline vs shading: organ agreement, level-0 pixels"),
     ST_SETTING(contour_check_inliers, 0, kMaxKeypoints, "feature poses with fewer inliers are checked by the outline (0: never)"),
     ST_SETTING(contour_veto_px, 0.001, 1000, "such a pose is lost if the outline puts the organ this far away, level-0 px"),
+    ST_SETTING(outline_guess, 0, 1, "lost: an outline far from the shading is a guess of its own for the features"),
     ST_SETTING(photometric_weight, 0, 1000, "the shading's information in the joint pose, times this"),
     ST_SETTING(max_jump_deg, 0.01, 180, "a pose turned farther from the prediction is lost, degrees"),
     ST_SETTING(max_jump_mm, 0.01, 1000, "a pose moved farther from the prediction is lost, mm"),
