@@ -133,8 +133,10 @@ Status OrbExtractor::configure(const OrbConfig& c, int width, int height) {
     per_level *= f;
   }
   level_target_[c.levels - 1] = std::max(c.n_features - total, 0);
-  // 3x3 suppression keeps at most one corner per 2x2 pixels.
-  const std::size_t cap = static_cast<std::size_t>(width) * height / 4 + 64;
+  // 3x3 suppression keeps at most one corner per 2x2 pixels; frames keep
+  // far fewer (kMaxLevelCorners).
+  const std::size_t cap = std::min(static_cast<std::size_t>(width) * height / 4 + 64,
+                                   static_cast<std::size_t>(kMaxLevelCorners));
   fast_out_.assign(cap, FastCorner{});
   cand_.assign(cap, Candidate{});
   cand_tmp_.assign(cap, Candidate{});
@@ -346,6 +348,19 @@ bool OrbExtractor::inside_masks(int level, int x, int y) const {
   return true;
 }
 
+// FAST corners of a level at threshold into fast_out_; a scan that fills
+// the array is redone at a higher threshold (kMaxLevelCorners), so that the
+// corners kept are the strongest over the whole level, not the first rows'.
+// A cascade step below the threshold used then finds nothing new.
+int OrbExtractor::detect_bounded(GrayView img, int threshold, const std::uint8_t* allowed, int chunks) {
+  const int capacity = static_cast<int>(fast_out_.size());
+  for (int t = threshold;; t = std::min(kMaxScanThreshold, t + std::max(2, t / 2))) {
+    const int n = fast_.detect(img, t, config_.edge_border_px, allowed, chunks, fast_out_.data(), capacity);
+    if (n < capacity || t >= kMaxScanThreshold) return n;
+    ++stats_.threshold_raises;
+  }
+}
+
 // Pass 1 (strict threshold): corners inside the masks; marks their cells.
 int OrbExtractor::filter_strict(int level, int n_fast) {
   const GrayView img = pyramid_.level(level);
@@ -426,6 +441,7 @@ int OrbExtractor::filter_relaxed(int level, int n_fast, int n, int min_score, in
       if (!spread_open_[static_cast<std::size_t>((c.y / sc) * ceil_div(img.width, sc) + c.x / sc)]) continue;
     }
     if (use_chunks_ && !inside_masks(level, c.x, c.y)) continue;
+    if (n == static_cast<int>(cand_.size())) break;  // the strict and relaxed corners together filled it
     cand_[static_cast<std::size_t>(n++)] = Candidate{ci, static_cast<float>(c.score), c.x, c.y, c.score};
   }
   return n;
@@ -638,10 +654,7 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
     // where the strict one kept nothing: most of the frame is scored once,
     // at the threshold where few pixels pass the cheap pre-test.
     const int chunks = ceil_div(img.width, kBlock);
-    const int capacity = static_cast<int>(fast_out_.size());
-    const int n_strict = fast_.detect(img, strict_threshold_, config_.edge_border_px,
-                                      use_chunks_ ? chunk_ok_.data() : nullptr, chunks,
-                                      fast_out_.data(), capacity);
+    const int n_strict = detect_bounded(img, strict_threshold_, use_chunks_ ? chunk_ok_.data() : nullptr, chunks);
     int n_kept = filter_strict(k, n_strict);
     // Relaxed corners only where they could survive the first spreading,
     // in a cascade of descending thresholds: each step adds the corners
@@ -665,8 +678,7 @@ bool OrbExtractor::extract(GrayView image, GrayView organ_mask, GrayView valid_m
       if (!close_spread_cells(k, n_kept, 2 * level_target_[k])) break;
       if (!scanned) {
         build_relaxed_chunk_map(k);
-        n_relaxed = fast_.detect(img, relaxed_threshold_, config_.edge_border_px,
-                                 chunk_relaxed_.data(), chunks, fast_out_.data(), capacity);
+        n_relaxed = detect_bounded(img, relaxed_threshold_, chunk_relaxed_.data(), chunks);
         scanned = true;
       }
       n_kept = filter_relaxed(k, n_relaxed, n_kept, t, prev_threshold);

@@ -71,12 +71,14 @@ struct OrbFrameStats {
   int fast_corners = 0;     // after non-maximum suppression, all levels
   int masked_corners = 0;   // after the organ/valid masks
   int kept_corners = 0;     // after the strict/relaxed cell rule
+  int threshold_raises = 0; // scans redone at a higher threshold: the level's corners filled the arrays
 };
 
 class OrbExtractor {
  public:
   // Allocates the pyramid, FAST row buffers, candidate arrays (capacity from
-  // the level-0 size) and mask scratch. Checks the config against capacity.h.
+  // the level-0 size, at most kMaxLevelCorners) and mask scratch. Checks
+  // the config against capacity.h.
   Status configure(const OrbConfig& config, int width, int height);
 
   // Detects and describes keypoints of image (width x height as configured)
@@ -100,6 +102,16 @@ class OrbExtractor {
   int relaxed_threshold() const { return relaxed_threshold_; }  // in use
   static constexpr int kMinStrictThreshold = 5;
   static constexpr int kMinRelaxedThreshold = 2;
+  // Corners one FAST scan of a level may hold (the candidate arrays' size,
+  // 38 bytes a corner). 3x3 suppression leaves at most one corner per 2x2
+  // pixels (230,464 at 1280x720: 8.8 MB), but frames hold far fewer: at
+  // most 20,081 in a level's scan over the simulator's scenarios, photo
+  // texture, smoke and smooth tissue at 1280x720. A scan that fills it
+  // (noise, heavy compression blocks) is redone at a higher threshold
+  // (OrbFrameStats::threshold_raises), so the level's corners never come
+  // from its top rows alone.
+  static constexpr int kMaxLevelCorners = 65536;
+  static constexpr int kMaxScanThreshold = 200;
 
   const OrbConfig& config() const { return config_; }
   const ImagePyramid& pyramid() const { return pyramid_; }
@@ -121,6 +133,7 @@ class OrbExtractor {
   void organ_block_depths(const std::uint8_t* organ_all);
   void build_chunk_map(int level);
   bool inside_masks(int level, int x, int y) const;
+  int detect_bounded(GrayView img, int threshold, const std::uint8_t* allowed, int chunks);
   int filter_strict(int level, int n_fast);
   int spread_cell_px(int level, int target) const;
   bool close_spread_cells(int level, int n, int target);

@@ -229,6 +229,38 @@ TEST_CASE("orb extract: never more keypoints than n_features (the map sizes a ke
   }
 }
 
+// A level's FAST scan holds at most OrbExtractor::kMaxLevelCorners corners;
+// noise fills it and the scan is redone at a higher threshold, without
+// allocating, and the keypoints still cover the whole frame (not only the
+// rows scanned before the array was full).
+TEST_CASE("orb extract: a scan that fills the corner arrays is redone at a higher threshold") {
+  const cv::Mat real = real_frame_luma(1280, 720);
+  REQUIRE(!real.empty());
+  cv::Mat noise(720, 1280, CV_8UC1);
+  cv::randu(noise, cv::Scalar(0), cv::Scalar(256));
+  auto out = std::make_unique<FeatureSet>();
+  OrbExtractor orb;
+  REQUIRE(orb.configure(OrbConfig{}, 1280, 720));
+  REQUIRE(orb.extract(view_of(real), GrayView(), GrayView(), *out));
+  CHECK(orb.stats().threshold_raises == 0);  // a real frame never comes near it
+  CHECK(orb.stats().fast_corners < OrbExtractor::kMaxLevelCorners);
+  AllocationCounter counter;
+  REQUIRE(orb.extract(view_of(noise), GrayView(), GrayView(), *out));
+  CHECK(counter.count() == 0);
+  MESSAGE("noise: " << orb.stats().threshold_raises << " scans redone, " << out->count << " keypoints");
+  CHECK(orb.stats().threshold_raises >= 1);
+  CHECK(out->count == 1500);
+  int level0 = 0, bottom = 0;  // level-0 keypoints, and those in the frame's lowest quarter
+  for (int i = 0; i < out->count; ++i) {
+    const Keypoint& k = out->keypoints[static_cast<std::size_t>(i)];
+    if (k.octave != 0) continue;
+    ++level0;
+    bottom += k.y > 540.f ? 1 : 0;
+  }
+  CHECK(level0 > 200);
+  CHECK(bottom > level0 / 8);
+}
+
 TEST_CASE("orb fast9: corners agree with cv::FAST (TYPE_9_16, non-max suppression)") {
   const cv::Mat img = real_frame_luma(1280, 720);
   REQUIRE(!img.empty());
