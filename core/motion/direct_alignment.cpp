@@ -46,7 +46,36 @@ int DirectAligner::choose_level(const int* widths, int levels) {
   return best;
 }
 
-Status DirectAligner::configure(int width, int height, double scale) {
+namespace {
+
+// The level sizes every aligner of width x height uses (halving, at least 1).
+template <class Visit>
+void for_each_level_size(int width, int height, int levels, Visit&& visit) {
+  int w = width, h = height;
+  for (int k = 0; k < levels; ++k) {
+    visit(k, w, h);
+    w = std::max(w / 2, 1);
+    h = std::max(h / 2, 1);
+  }
+}
+
+}  // namespace
+
+Status DirectAlignScratch::configure(int width, int height) {
+  width_ = height_ = 0;
+  if (width < 1 || height < 1 || width > kMaxImageWidth || height > kMaxImageHeight)
+    return make_error("DirectAlignScratch: images of " + std::to_string(width) + "x" + std::to_string(height));
+  std::size_t n = 0;
+  for_each_level_size(width, height, DirectAligner::kLevels,
+                      [&](int, int w, int h) { n += static_cast<std::size_t>(w) * static_cast<std::size_t>(h); });
+  planes_.assign(4 * n, 0.f);
+  masks_.assign(n, 0);
+  width_ = width;
+  height_ = height;
+  return Status::Ok();
+}
+
+Status DirectAligner::configure(int width, int height, double scale, DirectAlignScratch* shared) {
   configured_ = have_reference_ = false;
   if (width < kMinLevelWidth || height < 16 || width > kMaxImageWidth || height > kMaxImageHeight ||
       !(scale >= 1.0) || !std::isfinite(scale))
@@ -56,24 +85,34 @@ Status DirectAligner::configure(int width, int height, double scale) {
   levels_used_ = 1;
   while (levels_used_ < kLevels && (width >> levels_used_) >= kMinLevelWidth && (height >> levels_used_) >= 8)
     ++levels_used_;
-  int w = width, h = height;
+  DirectAlignScratch* scratch = shared ? shared : &own_scratch_;
+  if (!shared) {
+    if (Status st = own_scratch_.configure(width, height); !st.ok()) return st;
+  } else if (shared->width_ != width || shared->height_ != height) {
+    return make_error("DirectAligner: a shared scratch of " + std::to_string(shared->width_) + "x" +
+                      std::to_string(shared->height_) + " for images of " + std::to_string(width) + "x" +
+                      std::to_string(height));
+  }
+  std::size_t offset = 0;
+  const std::size_t total = scratch->masks_.size();
   double s = scale;
-  for (Level& l : levels_) {
+  for_each_level_size(width, height, kLevels, [&](int k, int w, int h) {
+    Level& l = levels_[k];
     l.w = w;
     l.h = h;
     l.scale = s;
+    s *= 2.0;
     const auto n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
     l.ref.assign(n, 0.f);
-    l.cur.assign(n, 0.f);
-    l.gx.assign(n, 0.f);
-    l.gy.assign(n, 0.f);
-    l.tmp.assign(n, 0.f);
     l.ref_mask.assign(n, 0);
-    l.cur_mask.assign(n, 0);
-    w = std::max(w / 2, 1);
-    h = std::max(h / 2, 1);
-    s *= 2.0;
-  }
+    float* planes = scratch->planes_.data();
+    l.cur = planes + offset;
+    l.tmp = planes + total + offset;
+    l.gx = planes + 2 * total + offset;
+    l.gy = planes + 3 * total + offset;
+    l.cur_mask = scratch->masks_.data() + offset;
+    offset += n;
+  });
   ref_image_.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), 0);
   // The reference's valid mask as sampled at the finest level (eroded when
   // the reference is built), not the frame's own: 0.9 MB less per aligner
@@ -139,10 +178,10 @@ void DirectAligner::erode_mask(std::uint8_t* mask) {
 
 // A level from the one below it, half the size: 2x2 means, valid where all four are.
 void DirectAligner::build_half(Level* half, const Level& full, bool reference) {
-  const std::vector<float>& src = reference ? full.ref : full.cur;
-  const std::vector<std::uint8_t>& src_mask = reference ? full.ref_mask : full.cur_mask;
-  std::vector<float>& dst = reference ? half->ref : half->cur;
-  std::vector<std::uint8_t>& dst_mask = reference ? half->ref_mask : half->cur_mask;
+  const float* src = reference ? full.ref.data() : full.cur;
+  const std::uint8_t* src_mask = reference ? full.ref_mask.data() : full.cur_mask;
+  float* dst = reference ? half->ref.data() : half->cur;
+  std::uint8_t* dst_mask = reference ? half->ref_mask.data() : half->cur_mask;
   for (int y = 0; y < half->h; ++y)
     for (int x = 0; x < half->w; ++x) {
       const std::size_t a = static_cast<std::size_t>(2 * y) * full.w + 2 * x, b = a + full.w;
@@ -158,15 +197,15 @@ void DirectAligner::build_half(Level* half, const Level& full, bool reference) {
 // as the scope moves, while the texture moves with the surface; only the
 // texture should pull the alignment.
 void DirectAligner::high_pass(Level* l, bool reference) {
-  std::vector<float>& img = reference ? l->ref : l->cur;
+  float* img = reference ? l->ref.data() : l->cur;
   const int w = l->w, h = l->h, r = kHighPassRadius;
   // Horizontal then vertical box sums through the scratch plane. Away from
   // the border the taps need no clamping; the sums keep the same order
   // there, so both forms give the same bits.
   const int x_in = std::min(r, w), x_out = std::max(x_in, w - r);  // [x_in, x_out): no tap clamps
   for (int y = 0; y < h; ++y) {
-    const float* row = img.data() + static_cast<std::ptrdiff_t>(y) * w;
-    float* out = l->tmp.data() + static_cast<std::ptrdiff_t>(y) * w;
+    const float* row = img + static_cast<std::ptrdiff_t>(y) * w;
+    float* out = l->tmp + static_cast<std::ptrdiff_t>(y) * w;
     const auto clamped_sum = [&](int x) {
       float s = 0.f;
       for (int k = -r; k <= r; ++k) s += row[std::clamp(x + k, 0, w - 1)];
@@ -184,22 +223,24 @@ void DirectAligner::high_pass(Level* l, bool reference) {
   const float inv = 1.f / static_cast<float>((2 * r + 1) * (2 * r + 1));
   for (int y = 0; y < h; ++y) {
     const float* taps[2 * kHighPassRadius + 1];
-    for (int k = -r; k <= r; ++k) taps[k + r] = l->tmp.data() + static_cast<std::ptrdiff_t>(std::clamp(y + k, 0, h - 1)) * w;
-    float* out = l->gx.data() + static_cast<std::ptrdiff_t>(y) * w;  // gx as a second scratch plane
+    for (int k = -r; k <= r; ++k) taps[k + r] = l->tmp + static_cast<std::ptrdiff_t>(std::clamp(y + k, 0, h - 1)) * w;
+    float* out = l->gx + static_cast<std::ptrdiff_t>(y) * w;  // gx as a second scratch plane
     for (int x = 0; x < w; ++x) {
       float s = 0.f;
       for (int k = 0; k <= 2 * r; ++k) s += taps[k][x];
       out[x] = s * inv;
     }
   }
-  for (std::size_t i = 0; i < img.size(); ++i) img[i] -= l->gx[i];
+  const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  for (std::size_t i = 0; i < n; ++i) img[i] -= l->gx[i];
 }
 
 // Central differences of the current image (0 on the border).
 void DirectAligner::gradients(Level* l) {
   const int w = l->w, h = l->h;
-  std::fill(l->gx.begin(), l->gx.end(), 0.f);
-  std::fill(l->gy.begin(), l->gy.end(), 0.f);
+  const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  std::fill(l->gx, l->gx + n, 0.f);
+  std::fill(l->gy, l->gy + n, 0.f);
   for (int y = 1; y + 1 < h; ++y)
     for (int x = 1; x + 1 < w; ++x) {
       const std::size_t i = static_cast<std::size_t>(y) * w + x;
@@ -316,7 +357,7 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
   const auto residual = [&](const SE3& Tp, double ap, double bp, int i, double* r, Vec3* pc, double* sx,
                             double* sy) {
     if (!project(Tp, i, pc, sx, sy)) return false;
-    *r = bilinear(l.cur.data(), w, *sx, *sy) - (ap * intensity_[static_cast<std::size_t>(i)] + bp);
+    *r = bilinear(l.cur, w, *sx, *sy) - (ap * intensity_[static_cast<std::size_t>(i)] + bp);
     return true;
   };
   // Median |residual| over the points in view at (Tp, ap, bp) into
@@ -380,7 +421,7 @@ bool DirectAligner::solve_level(const Level& l, int n, const CameraModel& camera
       Vec3 pc;
       double r, sx, sy;
       if (!residual(*T, *a, *b, i, &r, &pc, &sx, &sy)) continue;
-      const double gx = bilinear(l.gx.data(), w, sx, sy), gy = bilinear(l.gy.data(), w, sx, sy);
+      const double gx = bilinear(l.gx, w, sx, sy), gy = bilinear(l.gy, w, sx, sy);
       const double iz = 1.0 / pc.z();
       // d(small position)/d(camera point), distortion's own Jacobian left out.
       const double du = gx * K.fx * iz * inv_scale, dv = gy * K.fy * iz * inv_scale;
@@ -456,10 +497,10 @@ bool DirectAligner::align(GrayView image, GrayView valid, const MeshRasterizer& 
     have_reference_ = false;
     return false;
   }
-  sample_valid(valid, l0.cur_mask.data());
+  sample_valid(valid, l0.cur_mask);
   for (int y = 0; y < l0.h; ++y) {
     const std::uint8_t* row = image.row(y);
-    float* out = l0.cur.data() + static_cast<std::ptrdiff_t>(y) * l0.w;
+    float* out = l0.cur + static_cast<std::ptrdiff_t>(y) * l0.w;
     for (int x = 0; x < l0.w; ++x) out[x] = static_cast<float>(row[x]) * inv_scale_;
   }
   for (int li = 1; li < levels_used_; ++li) build_half(&levels_[li], levels_[li - 1], false);

@@ -67,8 +67,28 @@ struct DirectAlignSummary {
   Mat6 information = Mat6::Zero();
 };
 
+// The planes an alignment works in besides its reference's: the current
+// image's levels and valid masks, their gradients and a scratch plane.
+// Nothing in them outlives one align() or one reference build, so aligners
+// used one after another on one thread share one (the tracker's three at
+// 1280x720: one of 1.6 MB instead of three). configure() allocates.
+class DirectAlignScratch {
+ public:
+  Status configure(int width, int height);  // the finest level's size, as the aligners'
+
+ private:
+  friend class DirectAligner;
+  std::vector<float> planes_;        // per level: current image, scratch, x and y gradients
+  std::vector<std::uint8_t> masks_;  // per level: the current image's valid mask
+  int width_ = 0, height_ = 0;
+};
+
 class DirectAligner {
  public:
+  DirectAligner() = default;
+  DirectAligner(const DirectAligner&) = delete;  // its levels point into its scratch
+  DirectAligner& operator=(const DirectAligner&) = delete;
+
   static constexpr int kMaxPoints = 4096;
   static constexpr int kLevels = 4;          // at most
   static constexpr int kMinLevelWidth = 32;  // coarser levels while at least this wide
@@ -91,7 +111,9 @@ class DirectAligner {
 
   // width x height: the images handed over (an ImagePyramid level), scale:
   // full-resolution pixels per pixel (x_full = (x + 0.5) scale - 0.5).
-  Status configure(int width, int height, double scale);
+  // shared: a scratch configured for width x height that other aligners of
+  // this thread use too (it must outlive this one); null: one of its own.
+  Status configure(int width, int height, double scale, DirectAlignScratch* shared = nullptr);
   // The reference: the image, the frame's valid mask (any resolution up to
   // the frame's, 0 = unusable: field stop, highlights; may be empty) and
   // the pose of its frame. Copied; the caller's buffers may change
@@ -121,8 +143,11 @@ class DirectAligner {
   struct Level {
     int w = 0, h = 0;
     double scale = 0;  // full-resolution pixels per pixel
-    std::vector<float> ref, cur, gx, gy, tmp;
-    std::vector<std::uint8_t> ref_mask, cur_mask;
+    std::vector<float> ref;
+    std::vector<std::uint8_t> ref_mask;
+    // In the scratch (DirectAlignScratch), w x h each.
+    float *cur = nullptr, *gx = nullptr, *gy = nullptr, *tmp = nullptr;
+    std::uint8_t* cur_mask = nullptr;
   };
   void sample_valid(GrayView valid, std::uint8_t* mask);  // sample_mask(), then erode_mask()
   void sample_mask(GrayView valid, std::uint8_t* mask);
@@ -137,6 +162,7 @@ class DirectAligner {
                    DirectAlignSummary* s);
 
   Level levels_[kLevels];
+  DirectAlignScratch own_scratch_;  // when configure() is given none
   int levels_used_ = 1;
   bool configured_ = false, have_reference_ = false, reference_built_ = false;
   SE3 T_reference_;

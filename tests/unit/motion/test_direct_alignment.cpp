@@ -327,3 +327,42 @@ TEST_CASE(
   CHECK(coarse[1] <= 2);
   CHECK(end_px[1] < 0.7 * end_px[0]);
 }
+
+// Aligners that share one DirectAlignScratch (the tracker's three) give
+// the bits each gives with its own, used in turn against different
+// references; a scratch of another size is refused.
+TEST_CASE("direct alignment: aligners sharing a scratch give what each gives alone" * doctest::timeout(120)) {
+  Frames seq(ScenarioKind::Orbit, 100, 1);
+  seq.render({10, 12, 14});
+  const Pinhole& K = seq.setup.render.K;
+  const GrayView l = seq.pyramid.level(seq.level);
+  const double scale = seq.pyramid.scale(seq.level);
+  DirectAlignScratch scratch;
+  REQUIRE(scratch.configure(l.width, l.height));
+  DirectAligner shared_a, shared_b, own_a, own_b;
+  REQUIRE(shared_a.configure(l.width, l.height, scale, &scratch));
+  REQUIRE(shared_b.configure(l.width, l.height, scale, &scratch));
+  REQUIRE(own_a.configure(l.width, l.height, scale));
+  REQUIRE(own_b.configure(l.width, l.height, scale));
+  DirectAligner wrong;
+  CHECK_FALSE(wrong.configure(l.width / 2, l.height / 2, scale * 2, &scratch));
+  const SE3 T_a = seq.T_camera_model(10), T_b = seq.T_camera_model(12);
+  for (DirectAligner* a : {&shared_a, &own_a}) a->keep_reference(seq.image(0), seq.valid_mask(0), T_a);
+  for (DirectAligner* b : {&shared_b, &own_b}) b->keep_reference(seq.image(1), seq.valid_mask(1), T_b);
+  // Interleaved: a, b, a again (the scratch holds b's planes when a runs).
+  SE3 results[2][3];  // [shared, own][step]
+  for (int p = 0; p < 2; ++p) {
+    DirectAligner& a = p == 0 ? shared_a : own_a;
+    DirectAligner& b = p == 0 ? shared_b : own_b;
+    for (int step = 0; step < 3; ++step) {
+      DirectAligner& which = step == 1 ? b : a;
+      const SE3& T_ref = step == 1 ? T_b : T_a;
+      seq.raster.render(T_ref, K);
+      SE3 T = T_ref;
+      REQUIRE(which.align(seq.image(2), seq.valid_mask(2), seq.raster, seq.camera, &T));
+      results[p][step] = T;
+    }
+  }
+  for (int step = 0; step < 3; ++step) CHECK((results[0][step].matrix() - results[1][step].matrix()).norm() == 0.0);
+  CHECK(seq.reprojection_px(results[0][0], seq.T_camera_model(14)) < 1.0);
+}
