@@ -7,14 +7,7 @@
 
 namespace st {
 
-// Which solver BundleAdjuster runs: its own Schur-complement LM
-// (core/mapping/schur_solver.h, the product path: allocates nothing per
-// solve) or the Ceres form it replaced, kept as the reference for tests
-// and the bench (allocates inside Ceres). Not a settings key.
-enum class BaSolverForm : std::uint8_t { kSchur, kCeres };
-
 struct BundleAdjusterOptions {
-  BaSolverForm solver = BaSolverForm::kSchur;
   // The clock behind max_time_s and BaSummary::solver_ms for the Schur
   // solver (core/ has none: the caller injects it); nullptr: iterations
   // alone bound a solve. Ceres uses its own clock. Not a settings key.

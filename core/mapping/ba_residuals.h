@@ -1,8 +1,8 @@
 // The residuals of bundle adjustment (paper Eq. 4) and the pose manifold
-// they live on, as plain functions; core/mapping/bundle_adjustment.cpp wraps them
-// in Ceres cost functions and a ceres::Manifold (kept out of this header:
-// Ceres' headers bring glog's CHECK macros, which would clash with users'
-// own, e.g. doctest's).
+// they live on, as plain functions: the Schur solver evaluates them, and
+// the Ceres form (core/mapping_ceres/ceres_form.cpp) wraps them in Ceres
+// cost functions (kept out of this header: Ceres' headers bring glog's
+// CHECK macros, which would clash with users' own, e.g. doctest's).
 //
 // Pose block: a 6-vector delta = [omega (rad); v (mm)] around the pose T0
 // handed over in the job (T_camera_model, core/mapping/ba_job.h), the pose being

@@ -1,211 +1,19 @@
 #include "core/mapping/bundle_adjustment.h"
 
-#include <ceres/ceres.h>
-
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <string>
+#include <utility>
 
 #include "core/base/capacity.h"
 #include "core/geometry/reprojection.h"
 
 namespace st {
 
-namespace {
-
-// The linearization of one pose block, recomputed only when the block's
-// delta changes: Ceres evaluates all ~1000 residuals of a pose at the same
-// values, so exp(delta) * T0 and the left Jacobian of exp are computed once
-// per pose and evaluation instead of once per residual. Mutable from the
-// const Evaluate(): safe because the solver runs single-threaded.
-class PoseCache {
- public:
-  void reset(const SE3& T0_camera_model) {
-    T0_ = T0_camera_model;
-    delta_[0] = std::numeric_limits<double>::quiet_NaN();  // NaN != anything: recompute
-    held_.T_camera_model = T0_camera_model;
-  }
-  // The linearization at delta = 0, for a held pose (not a parameter block).
-  const PoseLinearization& held() const { return held_; }
-  const PoseLinearization& at(const double* delta) const {
-    bool same = true;
-    for (int k = 0; k < 6; ++k) same = same && delta_[k] == delta[k];
-    if (!same) {
-      for (int k = 0; k < 6; ++k) delta_[k] = delta[k];
-      pose_linearization(T0_, delta, &lin_);
-    }
-    return lin_;
-  }
-  const SE3& T0() const { return T0_; }
-
- private:
-  SE3 T0_;
-  mutable double delta_[6] = {std::numeric_limits<double>::quiet_NaN()};
-  mutable PoseLinearization lin_;
-  PoseLinearization held_;  // identity left Jacobian, at_origin
-};
-
-// Reprojection residual of one observation. The pose of a held keyframe
-// (fixed, or the gauge keyframe) is not a parameter block: the residual then
-// has the point as its only block (the same rows and point Jacobian; Ceres
-// gathers, checks and skips one block less per residual and evaluation, and
-// the held poses are not in the problem at all). The block sizes are set
-// per solve into a vector reserved at construction: no allocation.
-class ReprojectionCost final : public ceres::CostFunction {
- public:
-  ReprojectionCost() {
-    set_num_residuals(2);
-    mutable_parameter_block_sizes()->reserve(3);  // [pose,] point[, focal scale]
-  }
-  void set(const Pinhole& K, const Vec2& px_ideal, double info, double min_depth_mm, const PoseCache* pose,
-           bool held, bool focal = false) {
-    pose_ = pose;
-    K_ = K;
-    px_ = px_ideal;
-    sqrt_info_ = std::sqrt(info);
-    min_depth_mm_ = min_depth_mm;
-    held_ = held;
-    focal_ = focal;
-    std::vector<std::int32_t>& sizes = *mutable_parameter_block_sizes();
-    sizes.clear();
-    if (!held) sizes.push_back(6);
-    sizes.push_back(3);
-    if (focal) sizes.push_back(1);
-  }
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    const auto evaluate = [&](const Pinhole& K) {
-      if (held_)
-        return reprojection_cost(K, px_, sqrt_info_, min_depth_mm_, pose_->held(), parameters[0], residuals, nullptr,
-                                 jacobians ? jacobians[0] : nullptr);
-      return reprojection_cost(K, px_, sqrt_info_, min_depth_mm_, pose_->at(parameters[0]), parameters[1], residuals,
-                               jacobians ? jacobians[0] : nullptr, jacobians ? jacobians[1] : nullptr);
-    };
-    if (!focal_) return evaluate(K_);
-    // Focal lengths scaled by the last block's s (principal point kept):
-    // r = sqrt_info (s f xn + c - q), so dr/ds = sqrt_info f xn = (r + sqrt_info (q - c)) / s.
-    const int b = held_ ? 1 : 2;
-    const double scale = parameters[b][0];
-    Pinhole Ks = K_;
-    Ks.fx *= scale;
-    Ks.fy *= scale;
-    const bool ok = evaluate(Ks);
-    if (ok && jacobians && jacobians[b]) {
-      jacobians[b][0] = (residuals[0] + sqrt_info_ * (px_.x() - K_.cx)) / scale;
-      jacobians[b][1] = (residuals[1] + sqrt_info_ * (px_.y() - K_.cy)) / scale;
-    }
-    return ok;
-  }
-
- private:
-  const PoseCache* pose_ = nullptr;
-  Pinhole K_;
-  Vec2 px_ = Vec2::Zero();
-  double sqrt_info_ = 1, min_depth_mm_ = 1;
-  bool held_ = false, focal_ = false;
-};
-
-class ShapeCost final : public ceres::SizedCostFunction<3, 3> {
- public:
-  void set(const ClosestPointIndex* surface, double w_shape) {
-    surface_ = surface;
-    sqrt_w_ = std::sqrt(w_shape);
-  }
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    return surface_ && shape_cost(*surface_, sqrt_w_, parameters[0], residuals, jacobians ? jacobians[0] : nullptr);
-  }
-
- private:
-  const ClosestPointIndex* surface_ = nullptr;
-  double sqrt_w_ = 0;
-};
-
-class PlaneCost final : public ceres::SizedCostFunction<2, 3> {
- public:
-  void set(const ShapePlane* plane, double w_shape) {
-    plane_ = plane;
-    sqrt_w_ = std::sqrt(w_shape);
-  }
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    plane_cost(*plane_, sqrt_w_, parameters[0], residuals, jacobians ? jacobians[0] : nullptr);
-    return true;
-  }
-
- private:
-  const ShapePlane* plane_ = nullptr;
-  double sqrt_w_ = 0;
-};
-
-// The prior on one pose block: r = W (delta + e0), e0 = log(T0 T_prior^-1)
-// (the handed-over pose's offset from the prior), W = diag(1/sigma_rad x 3,
-// 1/sigma_mm x 3). First order in delta: log(exp(delta) X) = delta + log(X)
-// up to a term in |delta| |e0| (a window's delta of a few mrad times a
-// registration error of a few degrees or mm: far below the sigmas).
-class PosePriorCost final : public ceres::SizedCostFunction<6, 6> {
- public:
-  void set(const SE3& T0_camera_model, const SE3& T_prior, double sigma_rad, double sigma_mm) {
-    e0_ = (T0_camera_model * T_prior.inverse()).log();
-    for (int k = 0; k < 3; ++k) {
-      w_[k] = 1.0 / sigma_rad;
-      w_[k + 3] = 1.0 / sigma_mm;
-    }
-  }
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    for (int k = 0; k < 6; ++k) residuals[k] = w_[k] * (parameters[0][k] + e0_[k]);
-    if (jacobians && jacobians[0]) {
-      for (int k = 0; k < 36; ++k) jacobians[0][k] = 0.0;
-      for (int k = 0; k < 6; ++k) jacobians[0][k * 6 + k] = w_[k];
-    }
-    return true;
-  }
-
- private:
-  Vec6 e0_ = Vec6::Zero();
-  double w_[6] = {1, 1, 1, 1, 1, 1};
-};
-
-// Stops the solve once the gradient (max norm) has fallen below a fraction
-// of its value at the start. Ceres' own tests are absolute (gradient) or
-// need the next step solved and evaluated (function, parameter tolerance):
-// on the bench window the last of 3 steps changed the cost by 2e-7 and cost
-// a linear solve and an evaluation (~20% of the solve). Thread: the solver's.
-class RelativeGradientStop final : public ceres::IterationCallback {
- public:
-  explicit RelativeGradientStop(double tolerance) : tolerance_(tolerance) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
-    if (s.iteration == 0) {
-      start_norm_ = s.gradient_max_norm;
-      return ceres::SOLVER_CONTINUE;
-    }
-    if (s.step_is_successful && s.gradient_max_norm <= tolerance_ * start_norm_)
-      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
-    return ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  double tolerance_ = 0, start_norm_ = 0;
-};
-
-}  // namespace
-
-struct BundleAdjuster::Impl {
-  std::unique_ptr<ceres::LossFunction> reprojection_loss, shape_loss;
-  // Cost functions are not copyable: fixed arrays sized in configure(), not
-  // owned by the per-solve Problem.
-  std::unique_ptr<ReprojectionCost[]> reprojection_costs;
-  std::unique_ptr<ShapeCost[]> shape_costs;
-  std::unique_ptr<PlaneCost[]> plane_costs;
-  PosePriorCost prior_cost;                  // the job's pose prior (at most one)
-  std::unique_ptr<PoseCache[]> pose_caches;  // per job keyframe
-  std::unique_ptr<RelativeGradientStop> gradient_stop;
-  ceres::Problem::Options problem_options;
-  ceres::Solver::Options solver_options;
-  ceres::Problem* problem = nullptr;  // during solve() only
-};
-
 BundleAdjuster::BundleAdjuster() = default;
 BundleAdjuster::~BundleAdjuster() = default;
+
+void BundleAdjuster::use_reference(std::unique_ptr<BaReferenceSolver> solver) { reference_ = std::move(solver); }
 
 namespace {
 
@@ -249,12 +57,9 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   saved_points_.assign(np * 3, 0.0);
   newest_frames_.assign(np * static_cast<std::size_t>(std::max(1, options.max_observations_per_point)), -1);
   newest_fixed_frames_.assign(np * static_cast<std::size_t>(std::max(1, options.max_fixed_observations_per_point)), -1);
-  impl_.reset();
-  if (options.solver == BaSolverForm::kCeres) {
-    configure_ceres(max_keyframes, max_points, max_observations);
-  } else if (Status s = schur_.configure(max_keyframes, max_points, max_observations); !s.ok()) {
+  reference_.reset();
+  if (Status s = schur_.configure(max_keyframes, max_points, max_observations); !s.ok())
     return make_error("bundle adjustment: " + s.message());
-  }
   max_keyframes_ = max_keyframes;
   max_points_ = max_points;
   max_observations_ = max_observations;
@@ -262,38 +67,6 @@ Status BundleAdjuster::configure(const BundleAdjusterOptions& options, const Mes
   return Status::Ok();
 }
 
-// The Ceres form's pools and options (BaSolverForm::kCeres only).
-void BundleAdjuster::configure_ceres(int max_keyframes, int max_points, int max_observations) {
-  const BundleAdjusterOptions& options = options_;
-  impl_ = std::make_unique<Impl>();
-  impl_->reprojection_loss = std::make_unique<ceres::HuberLoss>(options.reprojection_huber);
-  // The residual is sqrt(w_shape) * distance: the threshold in its units.
-  impl_->shape_loss = std::make_unique<ceres::HuberLoss>(std::sqrt(options.w_shape) * options.shape_huber_mm);
-  impl_->reprojection_costs = std::make_unique<ReprojectionCost[]>(static_cast<std::size_t>(max_observations));
-  impl_->shape_costs = std::make_unique<ShapeCost[]>(static_cast<std::size_t>(max_points));
-  impl_->plane_costs = std::make_unique<PlaneCost[]>(static_cast<std::size_t>(max_points));
-  impl_->pose_caches = std::make_unique<PoseCache[]>(static_cast<std::size_t>(max_keyframes));
-  for (int i = 0; i < max_points; ++i) {
-    impl_->shape_costs[static_cast<std::size_t>(i)].set(&surface_, options.w_shape);
-    impl_->plane_costs[static_cast<std::size_t>(i)].set(&planes_[static_cast<std::size_t>(i)], options.w_shape);
-  }
-  ceres::Problem::Options& po = impl_->problem_options;
-  po.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  po.disable_all_safety_checks = true;  // check() vetted the job; saves ~1/3 of the build
-  ceres::Solver::Options& so = impl_->solver_options;
-  so.linear_solver_type = ceres::DENSE_SCHUR;
-  so.num_threads = 1;
-  so.jacobi_scaling = false;  // same iterations and results on the bench window, ~1 ms less (column scaling passes)
-  so.logging_type = ceres::SILENT;
-  so.minimizer_progress_to_stdout = false;
-  so.max_num_iterations = options.max_iterations;
-  so.max_solver_time_in_seconds = options.max_time_s;
-  if (options.relative_gradient_tolerance > 0) {
-    impl_->gradient_stop = std::make_unique<RelativeGradientStop>(options.relative_gradient_tolerance);
-    so.callbacks.push_back(impl_->gradient_stop.get());
-  }
-}
 
 // Counts within the maxima, indices in range, values finite.
 BaRefusal BundleAdjuster::check(const BaJob& job) const {
@@ -375,52 +148,6 @@ int BundleAdjuster::select(BaJob* job, bool free_prior, FocalTest focal) {
   }
   select_shapes(job);
   return used;
-}
-
-// Adds this solve's blocks and residuals (select()) to impl_->problem.
-void BundleAdjuster::build_ceres(BaJob* job) {
-  ceres::Problem& problem = *impl_->problem;
-  const bool free_focal = focal_ == FocalTest::kFree;
-  for (int i = 0; i < job->keyframe_count; ++i) {
-    impl_->pose_caches[static_cast<std::size_t>(i)].reset(T0_[static_cast<std::size_t>(i)]);
-    // Held poses stay out of the problem (their residuals take the point only).
-    if (!held_[static_cast<std::size_t>(i)]) problem.AddParameterBlock(pose_delta_block(i), 6);
-  }
-  if (use_prior_) {
-    const int prior_kf = job->prior.keyframe;
-    impl_->prior_cost.set(job->pose(prior_kf), pose_from_params(job->prior.pose), job->prior.sigma_rad,
-                          job->prior.sigma_mm);
-    problem.AddResidualBlock(&impl_->prior_cost, nullptr, pose_delta_block(prior_kf));
-  }
-  if (free_focal) {
-    focal_scale_[0] = 1.0;
-    problem.AddParameterBlock(focal_scale_, 1);
-  }
-  int used = 0;
-  for (int i = 0; i < job->observation_count; ++i) {
-    if (!observation_used_[static_cast<std::size_t>(i)]) continue;
-    const BaObservation& o = job->observations[static_cast<std::size_t>(i)];
-    ReprojectionCost& c = impl_->reprojection_costs[static_cast<std::size_t>(used++)];
-    const bool held = held_[static_cast<std::size_t>(o.keyframe)] != 0;
-    c.set(K_, Vec2(o.x_ideal, o.y_ideal), o.info, options_.min_depth_mm,
-          &impl_->pose_caches[static_cast<std::size_t>(o.keyframe)], held, free_focal);
-    // The residual's blocks: [pose,] point[, focal scale] (ReprojectionCost::set).
-    double* blocks[3];
-    int n_blocks = 0;
-    if (!held) blocks[n_blocks++] = pose_delta_block(o.keyframe);
-    blocks[n_blocks++] = job->points[static_cast<std::size_t>(o.point)].p_model;
-    if (free_focal) blocks[n_blocks++] = focal_scale_;
-    problem.AddResidualBlock(&c, impl_->reprojection_loss.get(), blocks, n_blocks);
-  }
-  for (int i = 0; i < job->point_count; ++i) {
-    const auto is = static_cast<std::size_t>(i);
-    if (!shape_used_[is]) continue;
-    double* f = job->points[is].p_model;
-    if (options_.exact_shape)
-      problem.AddResidualBlock(&impl_->shape_costs[is], impl_->shape_loss.get(), f);
-    else
-      problem.AddResidualBlock(&impl_->plane_costs[is], impl_->shape_loss.get(), f);
-  }
 }
 
 // Hands this solve (select()) to the Schur solver; false when it refuses.
@@ -552,21 +279,6 @@ void BundleAdjuster::forget_planes() {
   for (CachedPlane& c : plane_cache_) c.valid = false;
 }
 
-// Points first (eliminated), poses second: the Schur ordering Ceres would
-// find, given instead of searched for (its independent-set search builds a
-// graph of the whole problem on every solve).
-static std::shared_ptr<ceres::ParameterBlockOrdering> schur_ordering(BaJob* job,
-                                                                     const std::vector<std::uint8_t>& point_observed,
-                                                                     const std::vector<std::uint8_t>& held,
-                                                                     double* deltas) {
-  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-  for (int i = 0; i < job->point_count; ++i)
-    if (point_observed[static_cast<std::size_t>(i)]) ordering->AddElementToGroup(job->points[static_cast<std::size_t>(i)].p_model, 0);
-  for (int i = 0; i < job->keyframe_count; ++i)
-    if (!held[static_cast<std::size_t>(i)]) ordering->AddElementToGroup(deltas + 6 * i, 1);
-  return ordering;
-}
-
 bool BundleAdjuster::solve_once(BaJob* job, bool free_prior, int max_iterations, double max_time_s,
                                 SolveStats* stats, FocalTest focal) {
   job->summary = BaSummary{};
@@ -578,38 +290,15 @@ bool BundleAdjuster::solve_once(BaJob* job, bool free_prior, int max_iterations,
     job->summary.refusal = BaRefusal::kNothingToSolve;
     return false;
   }
-  const SolverRun run = impl_ ? run_ceres(job, max_iterations, max_time_s) : run_schur(job, max_iterations, max_time_s);
+  const SolverRun run =
+      reference_ ? reference_->run(*this, job, max_iterations, max_time_s) : run_schur(job, max_iterations, max_time_s);
   apply_pose_deltas(job);
   finish(job, run.initial_cost, run.final_cost, run.total_s, run.iterations, run.usable);
   // The focal test's solves are undone (test_focal()): no statistic of theirs is kept.
   if (focal == FocalTest::kNone)
     job->summary.mean_surface_distance_mm = mean_surface_distance(*job, options_.surface_distance_samples);
-  if (stats) *stats = run.stats;
+  if (stats) *stats = SolveStats{run.residuals, run.parameters};
   return job->summary.usable;
-}
-
-// The Ceres form: a Problem built, solved and torn down (allocates).
-BundleAdjuster::SolverRun BundleAdjuster::run_ceres(BaJob* job, int max_iterations, double max_time_s) {
-  ceres::Problem problem(impl_->problem_options);
-  impl_->problem = &problem;
-  build_ceres(job);
-  impl_->problem = nullptr;
-  ceres::Solver::Options so = impl_->solver_options;
-  so.linear_solver_ordering = schur_ordering(job, point_observed_, held_, deltas_.data());
-  if (focal_ == FocalTest::kFree) so.linear_solver_ordering->AddElementToGroup(focal_scale_, 1);
-  if (max_iterations > 0) so.max_num_iterations = max_iterations;
-  if (max_time_s > 0) so.max_solver_time_in_seconds = max_time_s;
-  ceres::Solver::Summary s;
-  ceres::Solve(so, &problem, &s);
-  SolverRun run;
-  run.initial_cost = s.initial_cost;
-  run.final_cost = s.final_cost;
-  run.total_s = s.total_time_in_seconds;
-  run.iterations = static_cast<int>(s.iterations.size());
-  run.usable = s.IsSolutionUsable();
-  run.stats.residuals = s.num_residuals;
-  run.stats.parameters = s.num_effective_parameters;
-  return run;
 }
 
 // The Schur solver: the solution copied back into the job's points, the
@@ -639,8 +328,8 @@ BundleAdjuster::SolverRun BundleAdjuster::run_schur(BaJob* job, int max_iteratio
   run.total_s = s.solver_ms * 1e-3;
   run.iterations = s.iterations;
   run.usable = s.usable;
-  run.stats.residuals = s.residuals;
-  run.stats.parameters = s.parameters;
+  run.residuals = s.residuals;
+  run.parameters = s.parameters;
   return run;
 }
 

@@ -14,13 +14,10 @@
 // Single-threaded, bounded iterations and solver time, and a stop once the
 // gradient has fallen to a fraction of its start.
 //
-// Two solvers minimise the same problem (BundleAdjusterOptions::solver):
-// - kSchur (the product path): core/mapping/schur_solver.h, every
-//   workspace sized in configure(); solve() allocates nothing.
-// - kCeres (the reference for tests and the bench): a ceres::Problem built
-//   and torn down per solve (dense Schur); the cost-function objects are
-//   pooled, but Ceres allocates its Problem, Program and linear-solver
-//   workspace on every solve, bounded by the job's size.
+// The solver: core/mapping/schur_solver.h, every workspace sized in
+// configure(); solve() allocates nothing. The Ceres form of the same
+// problem, the reference for tests and the bench, is a BaReferenceSolver
+// in core/mapping_ceres/ceres_form.h, outside the product's link.
 // Thread: the mapping thread (one BundleAdjuster per thread; the
 // closest-point index is read-only).
 #pragma once
@@ -39,6 +36,25 @@
 #include "core/base/result.h"
 
 namespace st {
+
+class BundleAdjuster;
+
+// Another solver of what BundleAdjuster::select() chose for a solve, used
+// instead of the Schur solver (BundleAdjuster::use_reference): the Ceres
+// form (core/mapping_ceres/ceres_form.h) that tests and the bench compare
+// against. It writes the solution where the Schur form does (the job's
+// points, the adjuster's pose deltas and focal scale).
+class BaReferenceSolver {
+ public:
+  struct Run {
+    double initial_cost = 0, final_cost = 0, total_s = 0;
+    int iterations = 0;
+    bool usable = false;
+    int residuals = 0, parameters = 0;  // scalar residuals and effective parameters
+  };
+  virtual ~BaReferenceSolver() = default;
+  virtual Run run(BundleAdjuster& ba, BaJob* job, int max_iterations, double max_time_s) = 0;
+};
 
 class BundleAdjuster {
  public:
@@ -65,6 +81,9 @@ class BundleAdjuster {
   // Drops the tangent planes kept from earlier solves (the bench: every
   // solve pays its closest-point queries).
   void forget_planes();
+  // Solves with solver instead of the Schur solver until the next
+  // configure() (tests, the bench: core/mapping_ceres/ceres_form.h).
+  void use_reference(std::unique_ptr<BaReferenceSolver> solver);
 
   const ClosestPointIndex& surface() const { return surface_; }
   const BundleAdjusterOptions& options() const { return options_; }
@@ -73,17 +92,11 @@ class BundleAdjuster {
   double mean_surface_distance(const BaJob& job, int max_samples = 0) const;
 
  private:
-  struct Impl;  // the Ceres objects (kept out of this header: glog macros)
+  friend class CeresForm;  // core/mapping_ceres: reads the selection, writes the solution
   struct SolveStats {
     int residuals = 0, parameters = 0;  // scalar residuals and effective parameters
   };
-  // What one solver run reports.
-  struct SolverRun {
-    double initial_cost = 0, final_cost = 0, total_s = 0;
-    int iterations = 0;
-    bool usable = false;
-    SolveStats stats;
-  };
+  using SolverRun = BaReferenceSolver::Run;  // what one solver run reports
   bool solve_tested_prior(BaJob* job, int max_iterations, double max_time_s);
   void test_focal(BaJob* job, int max_iterations, double max_time_s);
   // The focal test's solves (test_focal): no keyframe held and no prior,
@@ -94,9 +107,6 @@ class BundleAdjuster {
   void save_solution(const BaJob& job);
   void restore_solution(BaJob* job) const;
   int select(BaJob* job, bool free_prior, FocalTest focal);
-  void configure_ceres(int max_keyframes, int max_points, int max_observations);
-  SolverRun run_ceres(BaJob* job, int max_iterations, double max_time_s);
-  void build_ceres(BaJob* job);
   SolverRun run_schur(BaJob* job, int max_iterations, double max_time_s);
   bool load_schur(const BaJob& job);
   void newest_frames_per_point(const BaJob& job, int cap, bool fixed_only, std::vector<std::int32_t>* rows) const;
@@ -111,8 +121,8 @@ class BundleAdjuster {
   BundleAdjusterOptions options_;
   Pinhole K_;
   ClosestPointIndex surface_;
-  std::unique_ptr<Impl> impl_;  // kCeres only
-  SchurSolver schur_;            // kSchur only (configured for the maxima)
+  std::unique_ptr<BaReferenceSolver> reference_;  // tests and the bench: solves instead of schur_
+  SchurSolver schur_;                             // configured for the maxima
   std::vector<SE3> T0_;          // per job keyframe: the handed-over pose of this solve
   std::vector<double> deltas_;   // 6 per job keyframe: the solved left deltas
   std::vector<std::uint8_t> observation_used_;  // per job observation: in this solve

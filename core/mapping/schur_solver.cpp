@@ -52,6 +52,9 @@ Status SchurSolver::configure(int max_keyframes, int max_points, int max_observa
     return make_error("schur solver: capacities must be >= 1 (" + std::to_string(max_keyframes) + " keyframes, " +
                       std::to_string(max_points) + " points, " + std::to_string(max_observations) +
                       " observations)");
+  if (max_keyframes > kMaxKeyframes)  // an observation's keyframe and column are 16-bit
+    return make_error("schur solver: at most " + std::to_string(kMaxKeyframes) + " keyframes (" +
+                      std::to_string(max_keyframes) + " asked)");
   const auto nk = static_cast<std::size_t>(max_keyframes), np = static_cast<std::size_t>(max_points);
   const auto no = static_cast<std::size_t>(max_observations);
   T0_.assign(nk, SE3());
@@ -69,8 +72,8 @@ Status SchurSolver::configure(int max_keyframes, int max_points, int max_observa
   V_.assign(np, Mat3::Zero());
   V_inv_ = shape_J_ = V_;
   first_obs_.assign(np + 1, 0);
-  input_.assign(no, Observation{});
-  sorted_ = input_;
+  obs_.assign(no, Observation{});
+  order_.assign(no, 0);
   lin_obs_.assign(no, Linearization{});
   S_blocks_.assign(nk * nk, Mat6::Zero());
   const int max_columns = 6 * max_keyframes + 1;
@@ -120,8 +123,8 @@ bool SchurSolver::add_observation(int keyframe, int point, const Vec2& px_ideal,
   if (!set_up_ || observation_count_ >= max_observations_ || keyframe < 0 || keyframe >= keyframe_count_ ||
       point < 0 || point >= point_count_ || !(info > 0))
     return false;
-  Observation& o = input_[static_cast<std::size_t>(observation_count_++)];
-  o.keyframe = keyframe;
+  Observation& o = obs_[static_cast<std::size_t>(observation_count_++)];
+  o.keyframe = static_cast<std::int16_t>(keyframe);
   o.point = point;
   o.px = px_ideal;
   o.sqrt_info = std::sqrt(info);
@@ -156,12 +159,14 @@ bool SchurSolver::prepare() {
 }
 
 // Counting sort by point (the Schur elimination visits a point's
-// observations together); false when an observation names an inactive point.
+// observations together), stable, in place: each observation's place from
+// the counts, then the permutation applied cycle by cycle. False when an
+// observation names an inactive point.
 bool SchurSolver::sort_observations() {
   const auto np = static_cast<std::size_t>(point_count_);
   std::fill(first_obs_.begin(), first_obs_.begin() + static_cast<std::ptrdiff_t>(np + 1), 0);
   for (int i = 0; i < observation_count_; ++i) {
-    const Observation& o = input_[static_cast<std::size_t>(i)];
+    const Observation& o = obs_[static_cast<std::size_t>(i)];
     if (!active_[static_cast<std::size_t>(o.point)]) return false;
     ++first_obs_[static_cast<std::size_t>(o.point) + 1];
   }
@@ -171,11 +176,19 @@ bool SchurSolver::sort_observations() {
     if (active_[p]) active_points_[static_cast<std::size_t>(n_active++)] = static_cast<std::int32_t>(p);
   }
   active_count_ = n_active;
-  // Place: first_obs_[p] is advanced while filling, then shifted back.
+  // Places: first_obs_[p] is advanced while numbering, then shifted back.
   for (int i = 0; i < observation_count_; ++i) {
-    Observation o = input_[static_cast<std::size_t>(i)];
-    o.column = column_[static_cast<std::size_t>(o.keyframe)];
-    sorted_[static_cast<std::size_t>(first_obs_[static_cast<std::size_t>(o.point)]++)] = o;
+    Observation& o = obs_[static_cast<std::size_t>(i)];
+    o.column = static_cast<std::int16_t>(column_[static_cast<std::size_t>(o.keyframe)]);
+    order_[static_cast<std::size_t>(i)] = first_obs_[static_cast<std::size_t>(o.point)]++;
+  }
+  for (int i = 0; i < observation_count_; ++i) {
+    const auto is = static_cast<std::size_t>(i);
+    while (order_[is] != i) {  // the one here goes to its place; what was there comes here
+      const auto d = static_cast<std::size_t>(order_[is]);
+      std::swap(obs_[is], obs_[d]);
+      std::swap(order_[is], order_[d]);
+    }
   }
   for (std::size_t p = np; p > 0; --p) first_obs_[p] = first_obs_[p - 1];
   first_obs_[0] = 0;
@@ -223,7 +236,7 @@ bool SchurSolver::evaluate_observations(bool candidate, bool linearize, double* 
   const std::vector<Vec3>& points = candidate ? cand_point_ : x_point_;
   double sum = 0.0;
   for (int i = 0; i < observation_count_; ++i) {
-    const Observation& o = sorted_[static_cast<std::size_t>(i)];
+    const Observation& o = obs_[static_cast<std::size_t>(i)];
     const bool free_pose = o.column >= 0;
     const auto p = static_cast<std::size_t>(o.point), k = static_cast<std::size_t>(o.keyframe);
     Linearization& L = lin_obs_[static_cast<std::size_t>(i)];
@@ -400,14 +413,14 @@ void SchurSolver::eliminate_point(int point) {
   const int first = first_obs_[p], last = first_obs_[p + 1];
   const int nb = free_keyframes_;
   for (int i = first; i < last; ++i) {
-    const int ci = sorted_[static_cast<std::size_t>(i)].column;
+    const int ci = obs_[static_cast<std::size_t>(i)].column;
     if (ci < 0) continue;
     const Linearization& Li = lin_obs_[static_cast<std::size_t>(i)];
     const Eigen::Matrix<double, 3, 2> Qi = V_inv * Li.H;
     rhs_.segment<6>(ci).noalias() += Li.G * (Li.H.transpose() * vg);
     if (free_focal_) S_.block<1, 6>(f, ci).noalias() -= (Li.G * (Li.H.transpose() * vf)).transpose();
     for (int j = first; j <= i; ++j) {
-      const int cj = sorted_[static_cast<std::size_t>(j)].column;
+      const int cj = obs_[static_cast<std::size_t>(j)].column;
       if (cj < 0) continue;
       const Linearization& Lj = lin_obs_[static_cast<std::size_t>(j)];
       const Eigen::Matrix2d A = Qi.transpose() * Lj.H;  // block (i, j) = G_i A G_j^T
@@ -446,7 +459,7 @@ bool SchurSolver::back_substitute() {
     const int first = first_obs_[p], last = first_obs_[p + 1];
     Vec3 b = -g_point_[p] - W_focal_[p] * step_focal_;
     for (int i = first; i < last; ++i) {
-      const Observation& o = sorted_[static_cast<std::size_t>(i)];
+      const Observation& o = obs_[static_cast<std::size_t>(i)];
       if (o.column < 0) continue;
       const Linearization& L = lin_obs_[static_cast<std::size_t>(i)];
       b.noalias() -= L.H * (L.G.transpose() * step_pose_[static_cast<std::size_t>(o.keyframe)]);
@@ -455,7 +468,7 @@ bool SchurSolver::back_substitute() {
     step_point_[p] = d;
     finite = finite && d.allFinite();
     for (int i = first; i < last; ++i) {
-      const Observation& o = sorted_[static_cast<std::size_t>(i)];
+      const Observation& o = obs_[static_cast<std::size_t>(i)];
       const Linearization& L = lin_obs_[static_cast<std::size_t>(i)];
       Vec2 Jd = L.H.transpose() * d;
       if (o.column >= 0) Jd.noalias() += L.G.transpose() * step_pose_[static_cast<std::size_t>(o.keyframe)];

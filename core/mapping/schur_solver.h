@@ -1,7 +1,7 @@
 // The window bundle adjustment's own solver: Levenberg-Marquardt on the
 // reduced camera system, the points eliminated block by block (Schur
 // complement), the reduced system solved by a dense Cholesky. It minimises
-// exactly what the Ceres form (core/mapping/bundle_adjustment.cpp) hands to
+// exactly what the Ceres form (core/mapping_ceres/ceres_form.cpp) hands to
 // ceres::Solve: the residuals of core/mapping/ba_residuals.h (Huber on the
 // whitened reprojection, Huber on the shape residual, the pose prior, the
 // optional common focal scale), with the same 6-dim left pose deltas.
@@ -75,7 +75,9 @@ class SchurSolver {
  public:
   enum class ShapeKind : std::uint8_t { kNone, kPlane, kExact };
 
-  // Sizes every workspace (allocates). Each maximum >= 1.
+  // Sizes every workspace (allocates). Each maximum >= 1, max_keyframes
+  // at most kMaxKeyframes.
+  static constexpr int kMaxKeyframes = 4096;
   Status configure(int max_keyframes, int max_points, int max_observations);
 
   // Problem set-up, in this order; allocates nothing. Indices are the
@@ -96,10 +98,13 @@ class SchurSolver {
   double focal_scale() const { return x_focal_; }
 
  private:
+  // 32 bytes: the largest of the solver's per-observation arrays after the
+  // linearization.
   struct Observation {
-    std::int32_t keyframe = 0, column = -1, point = 0;  // column: reduced system offset, -1 held
     Vec2 px = Vec2::Zero();
     double sqrt_info = 1;
+    std::int32_t point = 0;
+    std::int16_t keyframe = 0, column = -1;  // column: reduced system offset, -1 held
   };
   // One observation's corrected (Huber-scaled) residual and Jacobians at
   // x, stored transposed: a row-major 2 x n Jacobian as reprojection_cost()
@@ -173,9 +178,11 @@ class SchurSolver {
   std::vector<Vec3> W_focal_;  // J_point^T J_focal summed over the point's observations
   std::vector<Vec3> shape_r_;  // corrected shape residual (the plane's in row 0, the rest 0)
   std::vector<Mat3> shape_J_;  // and its Jacobian
-  std::vector<std::int32_t> first_obs_;  // per point: its observations in sorted_ (point_count_ + 1)
-  // Per observation.
-  std::vector<Observation> input_, sorted_;
+  std::vector<std::int32_t> first_obs_;  // per point: its observations in obs_ (point_count_ + 1)
+  // Per observation: as added, sorted by point in place by prepare()
+  // (order_: each one's place, a scratch of the sort).
+  std::vector<Observation> obs_;
+  std::vector<std::int32_t> order_;
   std::vector<Linearization> lin_obs_;
   // Focal scale (one more reduced column when free).
   double x_focal_ = 1, cand_focal_ = 1, step_focal_ = 0, g_focal_ = 0, U_ff_ = 0, diag_focal_ = 0;

@@ -18,6 +18,7 @@
 #include "bench.h"
 #include "bench_liver.h"
 #include "core/mapping/bundle_adjustment.h"
+#include "core/mapping_ceres/ceres_form.h"
 #include "core/mesh/closest_point.h"
 #include "platform/alloc_counter.h"
 #include "platform/clock.h"
@@ -89,12 +90,10 @@ Row bench_window(const Options& opt, const Mesh& liver, double w_shape, int poin
   o.w_shape = w_shape;
   o.max_observations_per_point = max_obs_per_point;
   o.now_ns = platform::monotonic_ns;
-  BundleAdjusterOptions o_ceres = o;
-  o_ceres.solver = BaSolverForm::kCeres;
   BundleAdjuster schur, ceres;
   Row row;
   const int nk = w.job.keyframe_capacity(), np = w.job.point_capacity(), no = w.job.observation_capacity();
-  if (!schur.configure(o, liver, K, nk, np, no).ok() || !ceres.configure(o_ceres, liver, K, nk, np, no).ok())
+  if (!schur.configure(o, liver, K, nk, np, no).ok() || !configure_ceres_form(&ceres, o, liver, K, nk, np, no).ok())
     return row;
   const BaJob pristine = w.job;
   const double err_before = mean_point_error(w);

@@ -1,5 +1,5 @@
 // The window BA's own Schur-complement solver (core/mapping/schur_solver.h)
-// against the Ceres form it replaced (BaSolverForm::kCeres), on the bench
+// against the Ceres form it replaced (core/mapping_ceres/ceres_form.h), on the bench
 // window and on perturbed windows: the same window and start must give the
 // same solution (poses within 1e-4 deg / 1e-4 mm, points within 1e-3 mm);
 // no allocation per solve; bad jobs refused with a reason; the focal
@@ -14,6 +14,7 @@
 
 #include "core/mapping/ba_residuals.h"
 #include "core/mapping/bundle_adjustment.h"
+#include "core/mapping_ceres/ceres_form.h"
 #include "support/alloc_guard.h"
 #include "support/ba_window.h"
 #include "support/raster_scene.h"
@@ -44,11 +45,10 @@ Difference difference(const BaJob& a, const BaJob& b) {
 void solve_both(BundleAdjusterOptions o, const Mesh& mesh, const Pinhole& K, const BaJob& job, BaJob* schur,
                 BaJob* ceres) {
   o.max_time_s = 10.0;  // iterations alone bound both (Ceres' clock would otherwise vary)
-  BundleAdjusterOptions oc = o;
-  oc.solver = BaSolverForm::kCeres;
   BundleAdjuster a, b;
   REQUIRE(a.configure(o, mesh, K, job.keyframe_capacity(), job.point_capacity(), job.observation_capacity()).ok());
-  REQUIRE(b.configure(oc, mesh, K, job.keyframe_capacity(), job.point_capacity(), job.observation_capacity()).ok());
+  REQUIRE(configure_ceres_form(&b, o, mesh, K, job.keyframe_capacity(), job.point_capacity(),
+                               job.observation_capacity()).ok());
   *schur = job;
   *ceres = job;
   const bool ok_schur = a.solve(schur), ok_ceres = b.solve(ceres);
