@@ -24,7 +24,7 @@ struct ReplayOptions {
   std::filesystem::path out_dir;
   bool realtime = false;   // pace frames to the sequence's fps; else as fast as possible
   bool progress = false;   // progress line on stderr (the caller checks isatty)
-  int ring_slots = 6;      // capture ring: frames queued or in use at once
+  int ring_slots = 4;      // capture ring: frames queued or in use at once
   // The tracker's working size (TrackerProcessor::working_pinhole): when
   // smaller than the video's, the capture thread makes each frame at it
   // too (FrameRef::y_work). 0: not made.

@@ -40,7 +40,7 @@ struct ReplayArgs {
   std::string sequence, out;
   SettingsArgs settings;    // --config FILE, --set KEY=VALUE, --ba-lag N (last: the key ba_lag_frames)
   bool realtime = false;    // --realtime: paced at the sequence's fps
-  int ring_slots = 6;       // --ring N: capture ring slots
+  int ring_slots = 4;       // --ring N: capture ring slots
   std::string stream;       // --stream ENDPOINT: serve consoles (firmware_app/stream_link.h)
   int stream_wait = 0;      // --stream-wait N: start once N consoles are connected
   int texture_every = 0;    // --texture-every K: 0 keyframes, k every k-th frame with a pose
