@@ -88,6 +88,7 @@ EvalResult evaluate(const EvalInput& in) {
     r.tre_max_px = tre_all.back();
   }
   r.rot_err_median_deg = median_of(rot_err);
+  for (double e : rot_err) r.rot_err_max_deg = std::max(r.rot_err_max_deg, e);
   r.trans_err_median_mm = median_of(trans_err);
   return r;
 }

@@ -52,6 +52,7 @@ struct EvalResult {
   double wrong_pct = 0;
   int pose_frames = 0;       // reported frames with ground truth
   double rot_err_median_deg = 0, trans_err_median_mm = 0;
+  double rot_err_max_deg = 0;  // the largest rotation error of a reported pose
 };
 
 EvalResult evaluate(const EvalInput& in);

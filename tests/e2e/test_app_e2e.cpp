@@ -4,14 +4,11 @@
 // sequence --check refuses, a bad command line).
 #include <doctest/doctest.h>
 
-#include <algorithm>
-#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <string>
 
 #include "core/formats/sequence.h"
-#include "core/formats/trajectory.h"
 #include "core/tracking/tracker.h"
 #include "hal/storage/file_io.h"
 #include "hal/storage/sequence_loader.h"
@@ -113,21 +110,6 @@ EvalReport photo_manipulation_run(const std::filesystem::path& dir, const std::s
 }
 
 // Initialised, no wrong pose, and lost / TRE median / TRE p95 within bounds.
-// The largest rotation error (deg) of a run's reported poses against the
-// sequence's ground truth (frames matched by time).
-double largest_rotation_error_deg(const std::filesystem::path& seq, const std::filesystem::path& run) {
-  auto truth = parse_tum(test::read_file_bytes(seq / "groundtruth.txt"));
-  auto poses = parse_tum(test::read_file_bytes(run / "trajectory.txt"));
-  REQUIRE(truth.ok());
-  REQUIRE(poses.ok());
-  double largest = 0;
-  for (const TimedPose& p : poses.value())
-    for (const TimedPose& g : truth.value())
-      if (std::abs(g.timestamp_s - p.timestamp_s) < 1e-6)
-        largest = std::max(largest, pose_delta(g.T_model_camera, p.T_model_camera).angle_deg);
-  return largest;
-}
-
 void check_run(const EvalResult& e, double max_lost_pct, double max_tre_median_px, double max_tre_p95_px) {
   CHECK(e.init_ok);
   CHECK(e.wrong_pct == 0.0);
@@ -351,10 +333,10 @@ TEST_CASE("app_e2e: the outline refuses a blurred frame's wrong feature pose (sm
   CHECK(report.result.wrong_pct == 0.0);
   CHECK(summary_number(dir / "out", "outline_vetoes") >= 1);
   CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);  // the check allocates nothing
-  const double checked_deg = largest_rotation_error_deg(dir / "seq", dir / "out");
+  const double checked_deg = report.result.rot_err_max_deg;
   const EvalResult control =
       track_control(dir, raw_frame + " --set contour_check_inliers=0", "weak feature poses not checked by the outline");
-  const double unchecked_deg = largest_rotation_error_deg(dir / "seq", dir / "control");
+  const double unchecked_deg = control.rot_err_max_deg;
   MESSAGE("largest rotation error of a reported pose: " << checked_deg << " deg checked, " << unchecked_deg
                                                          << " deg unchecked");
   CHECK(checked_deg < 5.0);
@@ -363,7 +345,7 @@ TEST_CASE("app_e2e: the outline refuses a blurred frame's wrong feature pose (sm
   const EvalResult filtered = track_control(dir, "", "keypoints from the filtered frame (the default here)");
   CHECK(summary_number(dir / "control", "features_denoise") == 1);
   CHECK(filtered.wrong_pct == 0.0);
-  CHECK(largest_rotation_error_deg(dir / "seq", dir / "control") < 5.0);
+  CHECK(filtered.rot_err_max_deg < 5.0);
 }
 
 // Smooth tissue (the CT liver, 3 mm breathing), fast seed 1 at 960x540,
@@ -404,7 +386,7 @@ TEST_CASE("app_e2e: a lost frame's outline is a guess of its own (smooth half de
   simulate(dir / "seq", 150, "1280x720", 3, "fast", " --tissue smooth --organ-detail 0.5");
   const EvalReport report = track_evaluate(dir, kDeterministic);
   check_run(report.result, 10.0, 1.5, 4.0);
-  CHECK(largest_rotation_error_deg(dir / "seq", dir / "out") < 5.0);
+  CHECK(report.result.rot_err_max_deg < 5.0);
   CHECK(summary_number(dir / "out", "tracking_thread_allocations") == 0);
   const EvalResult control = track_control(dir, " --set outline_guess=0", "the outline not a guess of its own");
   CHECK(control.wrong_pct == 0.0);

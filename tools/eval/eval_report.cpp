@@ -125,6 +125,7 @@ std::string format_eval_json(const EvalReport& rep) {
   num("tre_samples", r.tre_samples);
   num("wrong_pct", r.wrong_pct);
   num("rot_err_median_deg", r.rot_err_median_deg);
+  num("rot_err_max_deg", r.rot_err_max_deg);
   num("trans_err_median_mm", r.trans_err_median_mm);
   num("fps", rep.fps);
   num("p99_latency_ms", rep.p99_latency_ms);
@@ -146,12 +147,12 @@ std::string format_eval_table(const EvalReport& rep) {
                 "lost              %.2f %%\n"
                 "wrong             %.2f %% (%d frames with median marker TRE > %.0f px)\n"
                 "TRE px            median %.3f  mean %.3f  p95 %.3f  (%d marker samples)\n"
-                "pose error        median %.3f deg, %.3f mm\n"
+                "pose error        median %.3f deg, %.3f mm; largest %.3f deg\n"
                 "fps               %s\n"
                 "p99 latency       %s\n",
                 r.frames, r.reported_frames, r.init_ok ? "yes" : "NO", r.lost_pct, r.wrong_pct,
                 r.wrong_frames, kWrongTrePx, r.tre_median_px, r.tre_mean_px, r.tre_p95_px,
-                r.tre_samples, r.rot_err_median_deg, r.trans_err_median_mm,
+                r.tre_samples, r.rot_err_median_deg, r.trans_err_median_mm, r.rot_err_max_deg,
                 fps, p99);
   return buf;
 }

@@ -46,6 +46,7 @@ TEST_CASE("evaluating the ground truth itself gives TRE 0 and lost 0") {
   CHECK(r.tre_samples == 180);
   CHECK(r.tre_max_px < 1e-9);
   CHECK(r.rot_err_median_deg < 1e-9);
+  CHECK(r.rot_err_max_deg < 1e-9);
   CHECK(r.trans_err_median_mm < 1e-9);
 }
 
@@ -86,6 +87,10 @@ TEST_CASE("evaluation of a perturbed trajectory with missing frames matches an i
   CHECK(r.tre_samples == 39 * 3);
   CHECK(r.tre_p95_px > 10.0);
   CHECK(r.trans_err_median_mm < 1e-9);
+  // The largest rotation error is frame 31's: its rotation replaced by 30 deg about y.
+  const Eigen::AngleAxisd frame31(in.groundtruth[31]->rotation().transpose() * in.estimated[31]->rotation());
+  CHECK(r.rot_err_max_deg == doctest::Approx(frame31.angle() * 180.0 / M_PI));
+  CHECK(r.rot_err_max_deg > 25.0);
 }
 
 TEST_CASE("a marker the estimate puts behind the camera is a wrong frame, not a missing one") {
