@@ -89,6 +89,8 @@ class SceneRenderer {
   // The ideal pinhole the meshes are rasterised with (output K plus a
   // margin that covers the distorted image).
   const Pinhole& ideal_camera() const { return K_ideal_; }
+  // The organ's breathing (its rigid part gives the ground truth's frame).
+  const BreathingField& breathing() const { return breathing_; }
 
  private:
   struct ShadeMesh {  // per-vertex normals/albedo, per-triangle barycentric solve

@@ -58,7 +58,7 @@ Result<SimReport> run_simulation(const SimOptions& o, const FrameSink& sink) {
   const Trajectory traj(o.scenario, s.scene, s.frames, o.seed);
   // Ground truth: the camera in the organ's rigid frame, which moves with
   // the organ while it breathes (breathing.h).
-  const BreathingField breathing(s.scene.organ, s.render.breathing_mm);
+  const BreathingField& breathing = renderer.breathing();
   const int W = s.render.K.width, H = s.render.K.height;
   Y4mHeader header;
   header.width = W;
