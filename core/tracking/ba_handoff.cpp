@@ -21,6 +21,7 @@ Status BaHandoff::configure(const TrackerConfig& config, const SE3& T_camera_mod
 
 void BaHandoff::reset() {
   window_pending_ = global_pending_ = focal_pending_ = false;
+  focal_waits_ = 0;
   init_keyframe_ = init_keyframe_frame_ = -1;
   keyframes_since_global_ = 0;
   calibration_jobs_ = 0;
@@ -115,13 +116,20 @@ bool BaHandoff::submit(const TrackingMap& map, bool initialised) {
   BaJob* job = channel_->acquire_job();
   if (!job) return false;
   // Corrections first (a global job covers the window too), the test when
-  // neither is pending.
-  const BaKind kind = global_pending_ ? BaKind::kGlobal : window_pending_ ? BaKind::kWindow : BaKind::kFocalTest;
+  // neither is pending or when it has waited behind kMaxFocalWaits window
+  // jobs (a mapping thread that never catches up still tests the
+  // calibration).
+  const bool focal_due = focal_pending_ && focal_waits_ >= kMaxFocalWaits;
+  const BaKind kind = global_pending_                                 ? BaKind::kGlobal
+                      : focal_pending_ && (!window_pending_ || focal_due) ? BaKind::kFocalTest
+                                                                          : BaKind::kWindow;
   fill_job(map, job, kind);
   if (kind == BaKind::kFocalTest) {
     focal_pending_ = false;
+    focal_waits_ = 0;
     ++calibration_jobs_;
   } else {
+    if (focal_pending_) ++focal_waits_;
     window_pending_ = global_pending_ = false;
   }
   channel_->submit_job(job);  // an empty job comes back unusable (BundleAdjuster refuses it)

@@ -17,8 +17,10 @@
 // The focal test (TrackerConfig::check_calibration): after each of the
 // first calibration_test_jobs window jobs is applied, a job of its own
 // (BaKind::kFocalTest, the same window from the corrected map) when no
-// correction is pending, so that the test's two solves never delay a
-// window's correction; nothing of it is written into the map. Each test's
+// correction is pending, so that the test's two solves do not delay a
+// window's correction, or after kMaxFocalWaits window jobs went before it
+// (a mapping thread that never catches up would starve it); nothing of it
+// is written into the map. Each test's
 // summary is a vote when its data fits focal lengths clearly off (F above
 // calibration_min_f and |s - 1| above calibration_scale_error);
 // calibration_votes votes in a row on the same side of 1 judge the
@@ -76,7 +78,9 @@ class BaHandoff {
   SE3 T_init_;
   std::array<double, kMaxPyramidLevels> octave_info_{};  // per octave: 1 / sigma^2
   BaChannel* channel_ = nullptr;  // not owned
+  static constexpr int kMaxFocalWaits = 3;  // window jobs a pending focal test lets go first
   bool window_pending_ = false, global_pending_ = false, focal_pending_ = false;
+  int focal_waits_ = 0;  // window jobs handed out while the focal test was pending
   // Frame 0's keyframe (slot and stamp; -1: none) while it carries the
   // registration prior, and the keyframes since the last global job.
   int init_keyframe_ = -1, init_keyframe_frame_ = -1;

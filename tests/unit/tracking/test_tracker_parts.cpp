@@ -384,20 +384,36 @@ TEST_CASE("BA hand-off: a window job after a keyframe, newest keyframes free, ap
   CHECK_FALSE(channel.out_);  // released all the same
 }
 
-TEST_CASE("BA hand-off: a focal test follows each of the first window jobs, writes nothing, and votes") {
-  PlaneMap m(20);
-  TrackerConfig c;
-  c.max_map_points = 256;
-  c.max_keyframes = 8;
-  c.calibration_test_jobs = 10;
+namespace {
+
+// A hand-off over a 20-point map with the echo channel, and a tracked
+// keyframe's result to hand it frame by frame.
+struct HandoffScene {
+  explicit HandoffScene(int calibration_test_jobs) {
+    TrackerConfig c;
+    c.max_map_points = 256;
+    c.max_keyframes = 8;
+    c.calibration_test_jobs = calibration_test_jobs;
+    REQUIRE(ba.configure(c, SE3()).ok());
+    ba.set_channel(&channel);
+    ba.map_initialised(m.map, m.keyframe);
+    r.keyframe = true;
+    r.state = TrackState::kTracking;
+  }
+  PlaneMap m{20};
   BaHandoff ba;
-  REQUIRE(ba.configure(c, SE3()).ok());
   EchoChannel channel;
-  ba.set_channel(&channel);
-  ba.map_initialised(m.map, m.keyframe);
   TrackResult r;
-  r.keyframe = true;
-  r.state = TrackState::kTracking;
+};
+
+}  // namespace
+
+TEST_CASE("BA hand-off: a focal test follows each of the first window jobs, writes nothing, and votes") {
+  HandoffScene scene(10);
+  PlaneMap& m = scene.m;
+  BaHandoff& ba = scene.ba;
+  EchoChannel& channel = scene.channel;
+  TrackResult& r = scene.r;
   const SE3 window_pose(Mat3::Identity(), Vec3(1, 2, 3)), test_pose(Mat3::Identity(), Vec3(7, 7, 7));
   const auto window_job = [&] {
     channel.moved = window_pose;
@@ -447,4 +463,30 @@ TEST_CASE("BA hand-off: a focal test follows each of the first window jobs, writ
   for (int k = 0; k < 3; ++k) one_job(1.0, 0, 8 + k);
   window_job();
   CHECK_FALSE(ba.submit(m.map, true));
+}
+
+TEST_CASE("BA hand-off: a focal test that three window jobs went before goes first") {
+  HandoffScene scene(TrackerConfig{}.calibration_test_jobs);
+  PlaneMap& m = scene.m;
+  BaHandoff& ba = scene.ba;
+  EchoChannel& channel = scene.channel;
+  TrackResult& r = scene.r;
+  // A keyframe every frame: a window job is always pending when the
+  // channel is free, as on a mapping thread that never catches up.
+  const auto next_kind = [&] {
+    ba.frame_done(m.map, r);
+    REQUIRE(ba.submit(m.map, true));
+    const BaKind kind = channel.job_.kind;
+    ba.apply(&m.map);
+    REQUIRE_FALSE(channel.out_);
+    return kind;
+  };
+  CHECK(next_kind() == BaKind::kWindow);  // the test is pending from here
+  for (int k = 0; k < 3; ++k) CHECK(next_kind() == BaKind::kWindow);
+  CHECK(next_kind() == BaKind::kFocalTest);
+  CHECK(next_kind() == BaKind::kWindow);
+  // A relocalisation's global job never waits for the test.
+  for (int k = 0; k < 3; ++k) CHECK(next_kind() == BaKind::kWindow);
+  r.state = TrackState::kRelocalised;
+  CHECK(next_kind() == BaKind::kGlobal);
 }
