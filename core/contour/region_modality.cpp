@@ -80,6 +80,10 @@ void RegionModality::reset() {
 // smooth orbit (seed 2) the lines measured at the true pose sat 4-10 px
 // inside the outline (RMS) once the organ filled the view, and the
 // outline's pose slid away with them; with the ratios, 1.0-1.4 px.
+double RegionModality::organ_probability(double f, double g) {
+  return std::clamp((f + 1e-6) / (f + g + 2e-6), kMinP, 1.0 - kMinP);
+}
+
 int RegionModality::colour_bin(GrayView luma, ChromaView chroma, int x, int y) {
   const int Y = luma(x, y) >> 5;
   if (chroma.empty()) return Y * 256 + 8 * 16 + 8;
@@ -215,9 +219,7 @@ int RegionModality::measure_lines(double step) {
     for (int s = 0; s < kSamples; ++s) {
       if (!(l.valid_bits & (1u << s))) continue;
       const auto b = static_cast<std::size_t>(l.bin[static_cast<std::size_t>(s)]);
-      const double f = fg_[b], g = bg_[b];
-      double p = (f + 1e-6) / (f + g + 2e-6);
-      p = std::clamp(p, kMinP, 1.0 - kMinP);
+      const double p = organ_probability(fg_[b], bg_[b]);
       sep_sum += std::abs(p - 0.5) * 2.0;
       ++sep_n;
       diff[static_cast<std::size_t>(s)] = std::log(p) - std::log(1.0 - p);

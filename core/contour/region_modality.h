@@ -113,6 +113,14 @@ class RegionModality {
 
   const MeshRasterizer& raster() const { return raster_; }
 
+  // The colour bin (of kBins) of the frame's pixel (x, y): Y at 3 bits, the
+  // chroma ratios at 4 bits each.
+  static int colour_bin(GrayView luma, ChromaView chroma, int x, int y);
+  // P(organ) of a colour with weights f and g in the organ's and the
+  // background's histograms, kept within [0.05, 0.95] (one sample of a
+  // colour seen only on one side must not decide a line alone).
+  static double organ_probability(double f, double g);
+
  private:
   struct Line {
     Vec3 p_model;    // the model point on the outline at the render
@@ -128,7 +136,6 @@ class RegionModality {
   int place_lines(const CameraModel& camera, const SE3& T);
   void sample_lines(GrayView luma, ChromaView chroma, GrayView valid, double step);
   int measure_lines(double step);
-  static int colour_bin(GrayView luma, ChromaView chroma, int x, int y);
   double offset_of(const Line& l, const SE3& T, Eigen::Matrix<double, 1, 6>* J) const;
 
   MeshRasterizer raster_;

@@ -173,6 +173,9 @@ Status TrackerImpl::configure(const TrackerConfig& input_config, const Mesh& mes
   if (Status s = raster_.configure(*rendered, rc); !s.ok()) return make_error("tracker: raster: " + s.message());
   if (Status s = region_.configure(*rendered, config.width, config.height); !s.ok())
     return make_error("tracker: " + s.message());
+  if (config.outline_search) {
+    if (Status s = outline_search_.configure(*rendered, K_); !s.ok()) return make_error("tracker: " + s.message());
+  }
   if (Status s = valid_mask_.configure(ValidMaskConfig{}, config.width, config.height); !s.ok())
     return make_error("tracker: valid mask: " + s.message());
   // The occluder mask is at the chroma's resolution, the valid mask's (1/2).
@@ -193,11 +196,12 @@ Status TrackerImpl::configure(const TrackerConfig& input_config, const Mesh& mes
     for (int k = 0; k < pyr.levels(); ++k) widths[static_cast<std::size_t>(k)] = pyr.level(k).width;
     align_level_ = DirectAligner::choose_level(widths.data(), pyr.levels());
     const GrayView l = pyr.level(align_level_);
-    if (Status s = aligner_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
+    if (Status s = align_scratch_.configure(l.width, l.height); !s.ok()) return make_error("tracker: " + s.message());
+    if (Status s = aligner_.configure(l.width, l.height, pyr.scale(align_level_), &align_scratch_); !s.ok())
       return make_error("tracker: " + s.message());
-    if (Status s = anchor_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
+    if (Status s = anchor_.configure(l.width, l.height, pyr.scale(align_level_), &align_scratch_); !s.ok())
       return make_error("tracker: " + s.message());
-    if (Status s = shading_ref_.configure(l.width, l.height, pyr.scale(align_level_)); !s.ok())
+    if (Status s = shading_ref_.configure(l.width, l.height, pyr.scale(align_level_), &align_scratch_); !s.ok())
       return make_error("tracker: " + s.message());
   }
   if (Status s = solver_.configure(kMaxKeypoints); !s.ok()) return make_error("tracker: pose: " + s.message());
@@ -254,6 +258,8 @@ void TrackerImpl::start() {
   anchor_.forget_reference();
   shading_ref_.forget_reference();
   region_.reset();
+  outline_search_.reset();
+  search_round_ = 0;
   frames_since_learn_ = 0;
   ref_keyframe_ = -1;
   reloc_keyframes_.reset();

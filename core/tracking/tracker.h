@@ -191,6 +191,21 @@ struct TrackerConfig {
   // of relocalisation), and when dead reckoning measured nothing it is the
   // next frame's guess.
   bool outline_guess = true;
+  // While lost with no outline near the guess (too few lines, or not fixing
+  // the organ to contour_max_sigma_px), the organ's silhouette is searched
+  // over every viewing direction (core/contour/outline_search.h) and the
+  // best candidates are fitted by the outline's lines; the best fit is a
+  // guess of its own as above (the features tracked from it pass only the
+  // stricter gates), and the next frame's dead reckoning and keyframe
+  // order start from it.
+  bool outline_search = true;
+  // A candidate's features, tracked from its outline fit, are reported
+  // under the stricter gates; or under the normal gates when their pose
+  // lies within search_radius_px of the fit; or, within refine_radius_px,
+  // with the normal gates' minimum inliers times this factor (2/3: 20 of
+  // 30; smooth tissue at half detail gave 24-28 inliers at ratio 0.6,
+  // 0.5-1.3 px from a fit 0.04-0.36 deg off).
+  double outline_agreement_inlier_factor = 2.0 / 3.0;
   // Descriptor matching (core/features/orb_matcher.h): max_distance (of 256
   // bits), the ratio test, the orientation check.
   MatchConfig matching;
@@ -325,6 +340,12 @@ struct TrackResult {
   // A feature pose that passed the gates, refused because the outline
   // measured from it put the organ elsewhere (contour_veto_px).
   bool outline_vetoed = false;
+  // Lost with no outline near the guess: the silhouette was searched from
+  // every side (the frame showed one to match), and a candidate's outline
+  // fit placed the organ (TrackerConfig::outline_search).
+  bool outline_searched = false;
+  bool outline_search_found = false;
+  SE3 T_search;                   // the search's fit (outline_search_found), else its best candidate
   int contour_lines = 0;
   double contour_rms_px = 0;
   double contour_sigma_px = -1;

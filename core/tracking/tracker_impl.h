@@ -18,6 +18,7 @@
 
 #include "core/mapping/ba_channel.h"
 #include "core/geometry/camera.h"
+#include "core/contour/outline_search.h"
 #include "core/contour/region_modality.h"
 #include "core/base/capacity.h"
 #include "core/motion/direct_alignment.h"
@@ -66,7 +67,13 @@ class TrackerImpl {
   SE3 motion_prior(GrayView luma, const SE3& T_reference, const SE3& T_predicted);
   bool dead_reckon(SE3* T_camera_model, const SE3& T_alternative, DirectAlignSummary* fit = nullptr);
   bool track_by_outline(const SE3& T_guess, PoseEstimate* e, TrackResult* r);
+  bool outline_placed(const TrackResult& r) const;
   bool outline_is_a_guess(const TrackResult& r) const;
+  static constexpr int kSearchTried = 4;  // outline search candidates kept per lost frame
+  static constexpr int kSearchFits = 2;   // of them fitted and tracked per lost frame (the best, one other in turn)
+  int search_round_ = 0;
+  int search_outline(TrackResult* r, SE3* fits);
+  void relocalise_by_search(int frame_index, TrackResult* r);
   bool outline_refutes(const PoseEstimate& e, TrackResult* r);
   double outline_sigma_px(const SE3& T, const ContourFit& fit, Mat6* H_out = nullptr) const;
   void learn_colours(const SE3& T, float rate, bool force = false);
@@ -88,6 +95,8 @@ class TrackerImpl {
   // Relocalisation (tracker_reloc.cpp).
   TrackResult relocalise(GrayView luma, int frame_index);
   bool reloc_with_keyframe(int keyframe_id, PoseEstimate* e, TrackResult* r);
+  bool track_from_guess(const SE3& T_guess, PoseEstimate* e, TrackResult* r);
+  void report_relocalised(const PoseEstimate& e, int frame_index, int strict_frames, TrackResult* r);
   void render_at(const SE3& T_camera_model);
   int remove_occluders_from_valid(GrayView luma, ChromaView chroma, bool* refused);
   double now_ms() const;
@@ -120,11 +129,13 @@ class TrackerImpl {
   OrbMatcher matcher_;
   FeatureGrid grid_;
   ImageMotion motion_;  // whole-view shift between frames: rotation prior under fast turns
+  DirectAlignScratch align_scratch_;  // the three aligners' current-image planes (used one at a time)
   DirectAligner aligner_;  // while lost: the camera's motion from the images and the mesh depth
   DirectAligner anchor_;   // the last frame that passed the normal gates: confirms weak poses
   DirectAligner shading_ref_;  // the last reported frame: the shading's measurement without features
   int align_level_ = 0;    // the ORB pyramid level it works on (about 320 pixels wide)
   RegionModality region_;  // the organ's outline: smooth tissue without features
+  OutlineSearch outline_search_;  // the organ's silhouette from every side, when lost
   static constexpr int kLearnEvery = 4;
   int frames_since_learn_ = 0;
   GrayView luma_;          // this frame's, for the stages that need it after step()

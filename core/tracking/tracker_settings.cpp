@@ -101,6 +101,8 @@ const std::array kKeys = {
     ST_SETTING(contour_check_inliers, 0, kMaxKeypoints, "feature poses with fewer inliers are checked by the outline (0: never)"),
     ST_SETTING(contour_veto_px, 0.001, 1000, "such a pose is lost if the outline puts the organ this far away, level-0 px"),
     ST_SETTING(outline_guess, 0, 1, "lost: an outline far from the shading is a guess of its own for the features"),
+    ST_SETTING(outline_search, 0, 1, "lost, no outline near the guess: the silhouette searched from every side"),
+    ST_SETTING(outline_agreement_inlier_factor, 0.2, 1.0, "min_inliers factor for features within the refine radius of an outline search fit"),
     ST_SETTING(photometric_weight, 0, 1000, "the shading's information in the joint pose, times this"),
     ST_SETTING(max_jump_deg, 0.01, 180, "a pose turned farther from the prediction is lost, degrees"),
     ST_SETTING(max_jump_mm, 0.01, 1000, "a pose moved farther from the prediction is lost, mm"),

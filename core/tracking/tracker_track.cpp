@@ -544,6 +544,7 @@ void TrackerImpl::learn_colours(const SE3& T, float rate, bool force) {
   if (!force && ++frames_since_learn_ < kLearnEvery) return;
   frames_since_learn_ = 0;
   region_.learn(luma_, chroma_, valid_view_, camera_, T, rate);
+  outline_search_.learn(luma_, chroma_, valid_view_, region_.raster(), rate);  // region_ rendered at T
 }
 
 void TrackerImpl::fill_measures(const PoseEstimate& e, TrackResult* r) const {

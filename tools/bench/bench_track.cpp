@@ -129,6 +129,7 @@ void log_frame(const Options& opt, const LoadedSequence& seq, int index, const T
       error("outline's error", r.T_outline);
       error("shading's", r.T_shading);
     }
+    if (r.outline_searched) error(r.outline_search_found ? "searched, fit's error" : "searched, best candidate's error", r.T_search);
   }
   info(opt, line);
 }

@@ -11,6 +11,7 @@
 #include "core/contour/region_modality.h"
 #include "core/raster/rasterizer.h"
 #include "hal/storage/mesh_file.h"
+#include "tests/support/flat_frame.h"
 #include "tests/support/raster_scene.h"
 #include "tests/support/support.h"
 
@@ -18,56 +19,13 @@ using namespace st;
 
 namespace {
 
-// A 4:2:0 frame of the organ (flat colour with a brightness falloff) on a
-// background of another colour, with sensor noise.
-struct Frame {
-  int w = 0, h = 0;
-  std::vector<std::uint8_t> y, u, v;
-  GrayView luma() const { return {y.data(), w, h, w}; }
-  ChromaView chroma() const { return {GrayView{u.data(), (w + 1) / 2, (h + 1) / 2, (w + 1) / 2},
-                                      GrayView{v.data(), (w + 1) / 2, (h + 1) / 2, (w + 1) / 2}}; }
-};
-
-Frame render_flat(const Mesh& mesh, const Pinhole& K, const SE3& T, std::uint64_t seed) {
-  MeshRasterizer r;
-  REQUIRE(r.configure(mesh, test::raster_config(K)));
-  r.render(T, K);
-  Frame f;
-  f.w = K.width;
-  f.h = K.height;
-  const int cw = (f.w + 1) / 2, ch = (f.h + 1) / 2;
-  f.y.assign(static_cast<std::size_t>(f.w * f.h), 0);
-  f.u.assign(static_cast<std::size_t>(cw * ch), 0);
-  f.v.assign(static_cast<std::size_t>(cw * ch), 0);
-  std::mt19937 gen(static_cast<std::uint32_t>(seed));
-  std::normal_distribution<double> nd;
-  const auto normal = [&] { return nd(gen); };
-  const auto m = r.mask();
-  for (int y = 0; y < f.h; ++y)
-    for (int x = 0; x < f.w; ++x) {
-      const double falloff = 1.0 - 0.3 * (std::hypot(x - K.cx, y - K.cy) / K.width);
-      const double base = m(x, y) ? 95.0 : 165.0;
-      const double val = base * falloff + 3.0 * normal();
-      f.y[static_cast<std::size_t>(y * f.w + x)] = static_cast<std::uint8_t>(std::clamp(val, 0.0, 255.0));
-    }
-  for (int y = 0; y < ch; ++y)
-    for (int x = 0; x < cw; ++x) {
-      // 4:2:0 chroma: the mean over its 2x2 luma pixels.
-      double organ = 0;
-      for (int k = 0; k < 4; ++k) organ += m(std::min(2 * x + (k & 1), f.w - 1), std::min(2 * y + (k >> 1), f.h - 1)) ? 0.25 : 0.0;
-      f.u[static_cast<std::size_t>(y * cw + x)] = static_cast<std::uint8_t>(std::lround(92 + 20 * organ + 2 * normal()));
-      f.v[static_cast<std::size_t>(y * cw + x)] = static_cast<std::uint8_t>(std::lround(150 + 18 * organ + 2 * normal()));
-    }
-  return f;
-}
-
 // The organ's rim darkened as where its surface turns away from the scope's
 // light: luma falls from 95 to 40 over the last 40 px inside the outline,
 // and the organ's chroma (its hue) falls with it, as a surface's chroma
 // scales with its luma; the background is a near-grey at the rim's darkest
 // luma.
 // With chroma levels of their own, the dark rim reads as background.
-Frame render_dark_rim(const Mesh& mesh, const Pinhole& K, const SE3& T, std::uint64_t seed) {
+test::Frame render_dark_rim(const Mesh& mesh, const Pinhole& K, const SE3& T, std::uint64_t seed) {
   MeshRasterizer r;
   REQUIRE(r.configure(mesh, test::raster_config(K)));
   r.render(T, K);
@@ -92,7 +50,7 @@ Frame render_dark_rim(const Mesh& mesh, const Pinhole& K, const SE3& T, std::uin
       if (x + 1 < w && y + 1 < h) at(x, y) = std::min(at(x, y), at(x + 1, y + 1) + 4);
       if (x > 0 && y + 1 < h) at(x, y) = std::min(at(x, y), at(x - 1, y + 1) + 4);
     }
-  Frame f;
+  test::Frame f;
   f.w = w;
   f.h = h;
   const int cw = (w + 1) / 2, ch = (h + 1) / 2;
@@ -153,7 +111,7 @@ LiverView liver_view() {
 TEST_CASE("contour: the outline alone recovers a perturbed pose of a textureless organ") {
   const LiverView v = liver_view();
   const CameraModel camera(v.K, Distortion{});
-  const Frame f = render_flat(v.mesh, v.K, v.T, 7);
+  const test::Frame f = test::render_flat(v.mesh, v.K, v.T, 7);
   RegionModality region;
   REQUIRE(region.configure(v.mesh, v.K.width, v.K.height));
   region.learn(f.luma(), f.chroma(), GrayView{}, camera, v.T);
@@ -187,7 +145,7 @@ TEST_CASE("contour: the outline alone recovers a perturbed pose of a textureless
 TEST_CASE("contour: no evidence where the valid mask is off, no lines without a colour model") {
   const LiverView v = liver_view();
   const CameraModel camera(v.K, Distortion{});
-  const Frame f = render_flat(v.mesh, v.K, v.T, 3);
+  const test::Frame f = test::render_flat(v.mesh, v.K, v.T, 3);
   RegionModality region;
   REQUIRE(region.configure(v.mesh, v.K.width, v.K.height));
   CHECK(region.measure(f.luma(), f.chroma(), GrayView{}, camera, v.T, 1) == 0);  // no colour model yet
@@ -213,7 +171,7 @@ TEST_CASE("contour: no evidence where the valid mask is off, no lines without a 
 TEST_CASE("contour: an organ's rim darkened by the light still counts as organ: the outline is not pulled in") {
   const LiverView v = liver_view();
   const CameraModel camera(v.K, Distortion{});
-  const Frame f = render_dark_rim(v.mesh, v.K, v.T, 5);
+  const test::Frame f = render_dark_rim(v.mesh, v.K, v.T, 5);
   RegionModality region;
   REQUIRE(region.configure(v.mesh, v.K.width, v.K.height));
   region.learn(f.luma(), f.chroma(), GrayView{}, camera, v.T);
