@@ -63,6 +63,7 @@ Status SchurSolver::configure(int max_keyframes, int max_points, int max_observa
   cand_pose_ = step_pose_ = g_pose_ = diag_pose_ = U_focal_ = x_pose_;
   lin_pose_.assign(nk, PoseLinearization{});
   U_.assign(nk, Mat6::Zero());
+  U_obs_diag_.assign(nk, Vec6::Zero());
   active_.assign(np, 0);
   active_points_.assign(np, 0);
   shape_.assign(np, ShapeKind::kNone);
@@ -199,6 +200,7 @@ void SchurSolver::clear_normal_equations() {
   for (int k = 0; k < keyframe_count_; ++k) {
     const auto ks = static_cast<std::size_t>(k);
     U_[ks].setZero();
+    U_obs_diag_[ks].setZero();
     g_pose_[ks].setZero();
     U_focal_[ks].setZero();
   }
@@ -254,7 +256,7 @@ bool SchurSolver::evaluate_observations(bool candidate, bool linearize, double* 
     g_point_[p].noalias() += L.H * L.r;
     if (free_pose) {
       if (w != 1.0) L.G *= w;
-      add_lower_abt<6>(L.G, L.G, &U_[k]);
+      U_obs_diag_[k] += L.G.rowwise().squaredNorm();  // the block itself: in eliminate_point()
       g_pose_[k].noalias() += L.G * L.r;
     }
     if (!free_focal_) continue;
@@ -351,7 +353,9 @@ double SchurSolver::step_norm() const { return free_norm(step_focal_, step_pose_
 bool SchurSolver::compute_step(double radius, bool new_diagonal, const SchurSolverOptions& o) {
   if (new_diagonal) {
     for (int k = 0; k < keyframe_count_; ++k)
-      diag_pose_[static_cast<std::size_t>(k)] = clamp_diagonal(Vec6(U_[static_cast<std::size_t>(k)].diagonal()), o.min_lm_diagonal, o.max_lm_diagonal);
+      diag_pose_[static_cast<std::size_t>(k)] =
+          clamp_diagonal(Vec6(U_[static_cast<std::size_t>(k)].diagonal() + U_obs_diag_[static_cast<std::size_t>(k)]),
+                         o.min_lm_diagonal, o.max_lm_diagonal);
     for (int a = 0; a < active_count_; ++a) {
       const auto p = static_cast<std::size_t>(active_points_[static_cast<std::size_t>(a)]);
       diag_point_[p] = clamp_diagonal(Vec3(V_[p].diagonal()), o.min_lm_diagonal, o.max_lm_diagonal);
@@ -400,7 +404,8 @@ bool SchurSolver::compute_step(double radius, bool new_diagonal, const SchurSolv
 // W = J_pose^T J_point per observation, never formed: the 6x6 block of
 // observations i, j is G_i A G_j^T with A = Q_i^T H_j (2x2), G = J_pose^T,
 // H = J_point^T, Q = V^-1 H. Only the lower triangle of S is kept (the
-// Cholesky reads no other).
+// Cholesky reads no other). Each observation's own G_i G_i^T (the pose
+// block of the normal equations) is added here too.
 void SchurSolver::eliminate_point(int point) {
   const auto p = static_cast<std::size_t>(point);
   Mat3 Vd = V_[p].selfadjointView<Eigen::Lower>();
@@ -424,8 +429,8 @@ void SchurSolver::eliminate_point(int point) {
       if (cj < 0) continue;
       const Linearization& Lj = lin_obs_[static_cast<std::size_t>(j)];
       const Eigen::Matrix2d A = Qi.transpose() * Lj.H;  // block (i, j) = G_i A G_j^T
-      if (i == j) {  // G_i A G_i^T, symmetric: its lower triangle
-        const Eigen::Matrix<double, 6, 2> B = -(Li.G * A.transpose());
+      if (i == j) {  // the observation's own J^T J less G_i A G_i^T: G_i (I - A) G_i^T, its lower triangle
+        const Eigen::Matrix<double, 6, 2> B = Li.G * (Eigen::Matrix2d::Identity() - A.transpose());
         add_lower_abt<6>(Li.G, B, &S_blocks_[static_cast<std::size_t>((ci / 6) * (nb + 1))]);
       } else if (ci > cj) {
         const Eigen::Matrix<double, 6, 2> B = Lj.G * A.transpose();

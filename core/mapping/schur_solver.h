@@ -165,7 +165,13 @@ class SchurSolver {
   std::vector<std::int32_t> column_;
   std::vector<Vec6> x_pose_, cand_pose_, step_pose_;
   std::vector<PoseLinearization> lin_pose_;
-  std::vector<Mat6> U_;  // J^T J of the pose block
+  // J^T J of the pose block: the pose prior's part; the observations' part
+  // is added where the points are eliminated (eliminate_point()), where
+  // each observation's Jacobian is read anyway, and only its diagonal is
+  // summed at the evaluation (the LM diagonal). An evaluation that ends
+  // the solve then forms no pose block.
+  std::vector<Mat6> U_;
+  std::vector<Vec6> U_obs_diag_;
   std::vector<Vec6> g_pose_, diag_pose_;
   std::vector<Vec6> U_focal_;  // J_focal^T J_pose
   // Per point.
