@@ -42,6 +42,8 @@ FrameRow record_frame(int frame, double timestamp_s, const TrackResult& r, doubl
   stats->by_outline += r.by_outline && row.pose_valid ? 1 : 0;
   if (r.outline_tried) ++stats->outline_verdicts[static_cast<std::size_t>(r.agreement)];
   stats->outline_vetoes += r.outline_vetoed ? 1 : 0;
+  stats->outline_searches += r.outline_searched ? 1 : 0;
+  stats->outline_search_fits += r.outline_search_found ? 1 : 0;
   return row;
 }
 
@@ -127,6 +129,8 @@ std::string format_run_summary(const RunStats& s, bool realtime,
                {"outline_no_shading", s.outline_verdicts[static_cast<std::size_t>(Agreement::kNoShading)]},
                {"outline_disagree", s.outline_verdicts[static_cast<std::size_t>(Agreement::kDisagree)]},
                {"outline_vetoes", s.outline_vetoes},
+               {"outline_searches", s.outline_searches},
+               {"outline_search_fits", s.outline_search_fits},
                {"max_latency_ms", s.max_latency_ms},
                {"wall_time_s", s.wall_s},
                {"realtime", realtime ? 1.0 : 0.0},

@@ -62,6 +62,10 @@ struct RunStats {
   // tried, by verdict (core/tracking/modality_agreement.h), kAgree first.
   std::array<int, 5> outline_verdicts{};
   int outline_vetoes = 0;  // feature poses the outline refused (TrackResult::outline_vetoed)
+  // Lost frames whose organ silhouette was searched from every side, and
+  // those on which a candidate's outline fit placed the organ
+  // (TrackResult::outline_searched, outline_search_found).
+  int outline_searches = 0, outline_search_fits = 0;
   double wall_s = 0, fps = 0;
   double mean_latency_ms = 0, p99_latency_ms = 0, max_latency_ms = 0;
   double peak_rss_mb = 0;
