@@ -5,8 +5,12 @@
 // (scopetrack-sim beside this binary, orbit 1280x720, 300 frames, cached in
 // the temp folder) unless --sequence DIR is given.
 //   scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH]
-//                          [--config FILE] [--set KEY=VALUE]... [--prior-subdivide N] [--log N]
+//                          [--config FILE] [--set KEY=VALUE]... [--prior-subdivide N] [--log N] [--ba-lag N]
 // --config and --set are scopetrack's tracker settings (scopetrack --print-config).
+// Without --ba-lag no bundle adjustment runs (the tracking thread's own
+// work); with it, the mapping thread solves the tracker's jobs and each
+// correction lands N frames after its job, as `scopetrack --ba-lag N`
+// replays do: the same poses, with --log's per-frame diagnostics.
 #include <algorithm>
 #include <cstdio>
 #include <cctype>
@@ -22,6 +26,7 @@
 #include "core/formats/text_scan.h"
 #include "core/tracking/tracker.h"
 #include "core/tracking/tracker_settings.h"
+#include "firmware_app/mapping_worker.h"
 #include "hal/storage/file_io.h"
 #include "hal/storage/sequence_loader.h"
 #include "hal/capture/y4m_reader.h"
@@ -35,6 +40,7 @@ struct TrackArgs {
   std::string sequence, scenario = "orbit", size = "1280x720";
   int frames = 300;
   int log_frames = 0;  // per-frame diagnostics on stderr for the first N frames
+  int ba_lag = 0;      // > 0: the mapping thread's BA, corrections landing this many frames after their job
   TrackerConfig config;  // --config FILE, --set KEY=VALUE: the tracker's settings
   int prior_subdivide = 0;  // the simulated sequence's organ.ply split this many times (scopetrack-sim --prior-subdivide)
 };
@@ -65,6 +71,7 @@ bool parse_track_args(const Options& opt, TrackArgs* a) {
     else if (k == "--frames" && v) { if (!whole(&i, 1, 100000, &a->frames)) return false; }
     else if (k == "--log" && v) { if (!whole(&i, 0, 100000, &a->log_frames)) return false; }
     else if (k == "--prior-subdivide" && v) { if (!whole(&i, 0, 3, &a->prior_subdivide)) return false; }
+    else if (k == "--ba-lag" && v) { if (!whole(&i, 1, 1000, &a->ba_lag)) return false; }
     else if (k == "--config" && v) {
       auto text = read_file(opt.args[++i], 1 << 20);
       setting = text ? read_tracker_settings(text.value(), &a->config) : Status(text.error());
@@ -155,6 +162,14 @@ Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, cons
                 std::to_string(tracker->raster_triangles()) + "; frames " + std::to_string(cfg.width) + "x" +
                 std::to_string(cfg.height) + " tracked at " + std::to_string(working.width) + "x" +
                 std::to_string(working.height));
+  app::MappingWorker mapping;  // --ba-lag: the replay's mapping thread
+  if (a.ba_lag > 0 && cfg.use_ba) {
+    TrackerConfig ba_cfg = cfg;
+    ba_cfg.ba_lag_frames = a.ba_lag;
+    if (Status s = mapping.configure(ba_cfg, seq.mesh, working); !s) return Error{s.message()};
+    tracker->set_ba_channel(&mapping);
+    mapping.start();
+  }
   TrackRun run;
   run.raster_triangles = tracker->raster_triangles();
   Y4mReader reader;
@@ -175,6 +190,7 @@ Result<TrackRun> run_tracker(const Options& opt, const LoadedSequence& seq, cons
     if (f.index < a.log_frames) log_frame(opt, seq, f.index, r);
   }
   tracker->stop();
+  mapping.stop();
   if (!reader.error().empty()) return make_error(reader.error());
   run.frames = static_cast<int>(run.step_ms.size());
   run.allocations = allocs;
@@ -211,7 +227,7 @@ int bench_track(const Options& opt) {
   TrackArgs a;
   if (!parse_track_args(opt, &a)) {
     std::fprintf(stderr, "usage: scopetrack-bench track [--sequence DIR] [--scenario S] [--frames N] [--size WxH]"
-                         " [--config FILE] [--set KEY=VALUE]... [--prior-subdivide N] [--log N]\n");
+                         " [--config FILE] [--set KEY=VALUE]... [--prior-subdivide N] [--log N] [--ba-lag N]\n");
     return 2;
   }
   std::filesystem::path dir = a.sequence;
